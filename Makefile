@@ -1,0 +1,28 @@
+# Two commands from a fresh clone:  `make demo` (solve a TSP, optimise a walking gait) and
+# `make test`. Both create the virtual environment .venv themselves.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test test-all lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/eaco tsp eil51 --iterations 200 --out out/tsp
+	$(BIN)/eaco gait --robot nao --out out/gait
+
+test: $(STAMP)
+	$(BIN)/ruff check eaco_jax robots experiments tests
+	$(BIN)/python -m pytest -m "not slow" -n 2 --durations=15
+
+test-all: $(STAMP)
+	$(BIN)/python -m pytest -n 2
+
+clean:
+	rm -rf $(VENV) out build *.egg-info

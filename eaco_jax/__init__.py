@@ -1,0 +1,25 @@
+"""eaco_jax: enhanced elitist-mutated ant colony optimisation (EACO) in JAX.
+
+Quick start::
+
+    import eaco_jax as ea
+    result = ea.minimize(ea.problems.load_tsplib("eil51"), seed=0, iterations=200)
+"""
+
+from eaco_jax import problems
+from eaco_jax.minimize import Result, minimize
+from eaco_jax.problem import Evaluation, ProblemError
+from eaco_jax.strategy import State, Strategy
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Evaluation",
+    "ProblemError",
+    "Result",
+    "State",
+    "Strategy",
+    "__version__",
+    "minimize",
+    "problems",
+]

@@ -1,0 +1,1 @@
+"""Gait optimisation: walk engine, rollouts on MJX / native MuJoCo, fitness."""

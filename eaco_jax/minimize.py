@@ -1,0 +1,233 @@
+"""The run driver: many ask/evaluate/tell iterations inside ``lax.scan``, in chunks.
+
+One chunk of iterations is one compiled call; between chunks the host updates the progress
+bar, checks the stop conditions and (see :mod:`eaco_jax.checkpoint`) writes checkpoints. Several
+seeds run as one vmapped call when ``seed`` is a sequence.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from eaco_jax.strategy import State, Strategy
+
+@dataclasses.dataclass
+class Result:
+    """What :func:`minimize` returns. With several seeds every array has a leading seed axis.
+
+    ``history`` maps a statistic name to an array over iterations (best so far, iteration
+    best, iteration mean, diversity, plus strategy-specific entries).
+    """
+
+    best_solution: np.ndarray
+    best_cost: np.ndarray
+    history: dict[str, np.ndarray]
+    iterations: int
+    evaluations: np.ndarray
+    seconds: float
+    compile_seconds: float
+    seconds_per_iteration: float
+    state: State
+    problem: Any
+    strategy: Strategy
+    seeds: list[int]
+
+    @property
+    def batched(self) -> bool:
+        return len(self.seeds) > 1 or np.ndim(self.best_cost) > 0
+
+
+def default_strategy(problem: Any) -> Strategy:
+    """The EACO strategy for the problem's kind."""
+    kind = getattr(problem, "kind", None)
+    if kind == "graph":
+        from eaco_jax.strategies.graph_eaco import GraphEACO
+
+        return GraphEACO()
+    if kind == "continuous":
+        from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+
+        return ContinuousEACO()
+    raise TypeError(
+        f"minimize() needs a problem with kind 'graph' or 'continuous', got {type(problem).__name__}"
+        f" with kind={kind!r}; build one with eaco_jax.problems (TSP, ConstrainedProblem, ...)."
+    )
+
+
+def iteration_step(strategy: Strategy, problem: Any, state: State) -> tuple[State, dict]:
+    """One ask -> evaluate -> tell round; the key for it is split off ``state.key``."""
+    key, ask_key = jax.random.split(state.key)
+    solutions, state = strategy.ask(ask_key, state.replace(key=key))
+    fitness = problem.evaluate(solutions)
+    state = strategy.tell(state, solutions, fitness)
+    return state, strategy.stats(state)
+
+
+def make_chunk_fn(strategy: Strategy, length: int, batched: bool) -> Callable:
+    """A jitted ``(problem, state) -> (state, history)`` running ``length`` iterations."""
+
+    def run(problem, state):
+        def body(s, _):
+            return iteration_step(strategy, problem, s)
+
+        return jax.lax.scan(body, state, None, length=length)
+
+    if batched:
+        run = jax.vmap(run, in_axes=(None, 0))
+    return jax.jit(run)
+
+
+def init_states(
+    strategy: Strategy, problem: Any, seeds: Sequence[int], params: Any | None
+) -> State:
+    """Initial state for one seed, or a vmapped batch of states for several."""
+    keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
+    if params is None:
+        params = strategy.default_params(problem)
+    if len(seeds) == 1:
+        return strategy.init(keys[0], problem, params)
+    return jax.vmap(lambda k: strategy.init(k, problem, params))(keys)
+
+
+def resolve_iterations(
+    strategy: Strategy, iterations: int | None, max_evaluations: int | None
+) -> int:
+    if iterations is not None and max_evaluations is not None:
+        raise ValueError("give iterations or max_evaluations, not both")
+    if max_evaluations is not None:
+        if max_evaluations < strategy.num_ants:
+            raise ValueError(
+                f"max_evaluations={max_evaluations} is below one colony ({strategy.num_ants} ants)"
+            )
+        return max_evaluations // strategy.num_ants
+    iterations = 100 if iterations is None else iterations
+    if iterations < 1:
+        raise ValueError(f"iterations must be >= 1, got {iterations}")
+    return int(iterations)
+
+
+def minimize(
+    problem: Any,
+    strategy: Strategy | None = None,
+    *,
+    seed: int | Sequence[int] = 0,
+    iterations: int | None = None,
+    max_evaluations: int | None = None,
+    params: Any | None = None,
+    chunk_size: int | None = None,
+    target: float | None = None,
+    progress: bool = False,
+    on_chunk: Callable[[State, int], None] | None = None,
+) -> Result:
+    """Minimise ``problem`` with an EACO colony.
+
+    Args:
+      problem: a graph or continuous problem (see :mod:`eaco_jax.problem`).
+      strategy: the colony; default :func:`default_strategy` for the problem's kind.
+      seed: an int, or a sequence of ints to run several seeds as one vmapped call.
+      iterations / max_evaluations: the budget (one of them; default 100 iterations).
+      params: hyper-parameters (default ``strategy.default_params(problem)``).
+      chunk_size: iterations per compiled call (default: about 20 chunks per run).
+      target: stop after the chunk in which every seed's best cost is <= target.
+      progress: show a progress bar (tqdm).
+      on_chunk: called as ``on_chunk(state, iterations_done)`` after each chunk.
+    """
+    strategy = default_strategy(problem) if strategy is None else strategy
+    kind = getattr(problem, "kind", None)
+    if strategy.problem_kind and kind != strategy.problem_kind:
+        raise TypeError(
+            f"{type(strategy).__name__} solves '{strategy.problem_kind}' problems, "
+            f"but {getattr(problem, 'name', problem)!r} is '{kind}'"
+        )
+    seeds = [int(seed)] if np.ndim(seed) == 0 else [int(s) for s in seed]
+    if not seeds:
+        raise ValueError("seed sequence is empty")
+    total = resolve_iterations(strategy, iterations, max_evaluations)
+    chunk = chunk_size or max(1, math.ceil(total / 20))
+    batched = len(seeds) > 1
+
+    state = init_states(strategy, problem, seeds, params)
+    return run_chunks(
+        strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
+        target=target, progress=progress, on_chunk=on_chunk,
+    )
+
+
+def run_chunks(
+    strategy: Strategy,
+    problem: Any,
+    state: State,
+    *,
+    total: int,
+    chunk: int,
+    batched: bool,
+    seeds: list[int],
+    done: int = 0,
+    history: list[dict] | None = None,
+    target: float | None = None,
+    progress: bool = False,
+    on_chunk: Callable[[State, int], None] | None = None,
+) -> Result:
+    """Run chunks from iteration ``done`` to ``total`` (used by minimize and by resume)."""
+    history = [] if history is None else history
+    compiled: dict[int, Any] = {}
+    compile_seconds = 0.0
+    run_seconds = 0.0
+    start = done
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=total, initial=done, desc=getattr(problem, "name", "eaco"), unit="it")
+    try:
+        while done < total:
+            length = min(chunk, total - done)
+            if length not in compiled:
+                t0 = time.perf_counter()
+                fn = make_chunk_fn(strategy, length, batched)
+                compiled[length] = fn.lower(problem, state).compile()
+                compile_seconds += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            state, hist = compiled[length](problem, state)
+            jax.block_until_ready(state)
+            run_seconds += time.perf_counter() - t0
+            history.append(jax.device_get(hist))
+            done += length
+            if bar is not None:
+                bar.update(length)
+                bar.set_postfix(best=float(np.min(np.asarray(state.best_cost))))
+            if on_chunk is not None:
+                on_chunk(state, done)
+            if target is not None and bool(np.all(np.asarray(state.best_cost) <= target)):
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+
+    axis = 1 if batched else 0
+    merged = {
+        k: np.concatenate([np.asarray(h[k]) for h in history], axis=axis) for k in history[0]
+    } if history else {}
+    iters_run = next(iter(merged.values())).shape[axis] if merged else 0
+    return Result(
+        best_solution=np.asarray(state.best_solution),
+        best_cost=np.asarray(state.best_cost),
+        history=merged,
+        iterations=iters_run,
+        evaluations=np.asarray(state.evaluations),
+        seconds=compile_seconds + run_seconds,
+        compile_seconds=compile_seconds,
+        seconds_per_iteration=run_seconds / max(done - start, 1),
+        state=state,
+        problem=problem,
+        strategy=strategy,
+        seeds=seeds,
+    )

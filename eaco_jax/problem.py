@@ -1,0 +1,41 @@
+"""What a problem is to the colony.
+
+A problem is a pytree (a ``flax.struct`` dataclass: arrays are leaves, configuration is
+static) with
+
+* ``kind``: ``"graph"`` (solutions are permutations / node sequences, e.g. TSP tours) or
+  ``"continuous"`` (solutions are real vectors inside box bounds);
+* ``name``: a short identifier used in results and checkpoints;
+* ``evaluate(solutions) -> fitness``: pure and batched over the leading (ant) axis, so the
+  whole colony is evaluated in one traced call. Graph problems return ``(m,)`` costs; continuous
+  problems return an :class:`Evaluation` (objective and total constraint violation).
+
+Problems know nothing about strategies. Everything is minimised.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import jax
+from flax import struct
+
+
+@struct.dataclass
+class Evaluation:
+    """Batched result of a continuous problem: objective ``f`` and violation (0 = feasible)."""
+
+    f: jax.Array
+    violation: jax.Array
+
+
+@runtime_checkable
+class Problem(Protocol):
+    kind: str
+    name: str
+
+    def evaluate(self, solutions: jax.Array) -> Any: ...
+
+
+class ProblemError(ValueError):
+    """A problem definition or input file is invalid; the message says how to fix it."""

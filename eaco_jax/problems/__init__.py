@@ -1,0 +1,1 @@
+"""Problem families (they know nothing about strategies)."""

@@ -1,0 +1,1 @@
+"""Colony strategies: one module per algorithm."""
