@@ -62,3 +62,15 @@ def guarded(fn: Callable[..., Any]) -> Callable[..., Any]:
             fail(str(msg))
 
     return wrapper
+
+
+# --------------------------------------------------------------------------- run registry
+#: name -> function(**args) -> JSON record. Every run command (tsp, constrained, gait) registers
+#: its plain-Python runner here so `eaco resume DIR` can re-run a checkpointed command from the
+#: arguments stored in the checkpoint (``run_info={"command": name, "args": args}``).
+RUNNERS: dict[str, Callable[..., dict[str, Any]]] = {}
+
+
+def register_runner(name: str, fn: Callable[..., dict[str, Any]]) -> Callable[..., dict[str, Any]]:
+    RUNNERS[name] = fn
+    return fn
