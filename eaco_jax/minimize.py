@@ -19,6 +19,7 @@ import numpy as np
 
 from eaco_jax.strategy import State, Strategy
 
+
 @dataclasses.dataclass
 class Result:
     """What :func:`minimize` returns. With several seeds every array has a leading seed axis.
@@ -57,8 +58,9 @@ def default_strategy(problem: Any) -> Strategy:
 
         return ContinuousEACO()
     raise TypeError(
-        f"minimize() needs a problem with kind 'graph' or 'continuous', got {type(problem).__name__}"
-        f" with kind={kind!r}; build one with eaco_jax.problems (TSP, ConstrainedProblem, ...)."
+        "minimize() needs a problem with kind 'graph' or 'continuous', got "
+        f"{type(problem).__name__} with kind={kind!r}; "
+        "build one with eaco_jax.problems (TSP, ConstrainedProblem, ...)."
     )
 
 

@@ -59,9 +59,10 @@ class Sharded:
     def evaluate(self, solutions: jax.Array) -> Any:
         m = solutions.shape[0]
         if m % self.num_devices:
+            k = self.num_devices
             raise ValueError(
-                f"{m} ants cannot be split evenly over {self.num_devices} devices; "
-                f"use a multiple of {self.num_devices} ants (e.g. {self.num_devices * -(-m // self.num_devices)})"
+                f"{m} ants cannot be split evenly over {k} devices; "
+                f"use a multiple of {k} ants (e.g. {k * -(-m // k)})"
             )
         problem = self.problem
 
