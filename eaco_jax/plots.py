@@ -1,0 +1,106 @@
+"""Figures users expect: convergence curves, tours, joint-angle trajectories.
+
+All functions write a PNG (matplotlib, Agg backend, no display needed) and return its path.
+Histories with a leading seed axis are drawn as the median with a min-max band.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def _save(fig: plt.Figure, path: str | Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def convergence(
+    history: Mapping[str, np.ndarray],
+    path: str | Path,
+    *,
+    title: str = "Convergence",
+    ylabel: str = "cost",
+    optimum: float | None = None,
+    keys: Sequence[str] = ("best_cost", "iter_mean_cost"),
+    evaluations_per_iteration: int | None = None,
+) -> Path:
+    """Best-so-far (and iteration mean) cost against iterations or evaluations."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for key in keys:
+        if key not in history:
+            continue
+        y = np.asarray(history[key], dtype=float)
+        y = np.where(np.isfinite(y), y, np.nan)
+        y2 = y if y.ndim == 2 else y[None]
+        x = np.arange(1, y2.shape[1] + 1)
+        if evaluations_per_iteration:
+            x = x * evaluations_per_iteration
+        label = key.replace("_", " ")
+        med = np.nanmedian(y2, axis=0)
+        (line,) = ax.plot(x, med, label=label if y.ndim == 1 else f"{label} (median)")
+        if y.ndim == 2 and y.shape[0] > 1:
+            ax.fill_between(x, np.nanmin(y2, 0), np.nanmax(y2, 0), alpha=0.2,
+                            color=line.get_color())
+    if optimum is not None:
+        ax.axhline(optimum, color="k", ls="--", lw=1, label=f"optimum {optimum:g}")
+    ax.set_xlabel("evaluations" if evaluations_per_iteration else "iteration")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return _save(fig, path)
+
+
+def tour(
+    coords: np.ndarray, order: np.ndarray, path: str | Path, *, title: str = "Tour"
+) -> Path:
+    """A closed tour over 2-D city coordinates."""
+    coords = np.asarray(coords, dtype=float)
+    closed = np.append(np.asarray(order), order[0])
+    fig, ax = plt.subplots(figsize=(5.5, 5.5))
+    ax.plot(coords[closed, 0], coords[closed, 1], "-", lw=1.0, color="tab:blue")
+    ax.plot(coords[:, 0], coords[:, 1], "o", ms=3, color="tab:red")
+    ax.plot(*coords[order[0]], "s", ms=7, color="k", label="start")
+    ax.set_aspect("equal")
+    ax.set_title(title)
+    ax.legend(loc="best")
+    return _save(fig, path)
+
+
+def joint_trajectories(
+    time: np.ndarray,
+    angles: Mapping[str, np.ndarray],
+    path: str | Path,
+    *,
+    title: str = "Joint angles",
+    groups: Sequence[str] = ("Hip", "Knee", "Ankle"),
+) -> Path:
+    """Joint angles (degrees) against time, one panel per joint group (the paper's Figs. 3, 10).
+
+    ``angles`` maps joint names (e.g. ``LHipPitch``) to radians over ``time``; a joint goes to
+    the first group whose name it contains.
+    """
+    fig, axes = plt.subplots(len(groups), 1, figsize=(7.0, 2.2 * len(groups)), sharex=True)
+    axes = np.atleast_1d(axes)
+    for ax, group in zip(axes, groups, strict=True):
+        for name, values in angles.items():
+            if group.lower() in name.lower():
+                ax.plot(time, np.degrees(np.asarray(values)), label=name, lw=1.2)
+        ax.set_ylabel(f"{group} [deg]")
+        ax.grid(alpha=0.3)
+        if ax.lines:
+            ax.legend(loc="upper right", fontsize=7, ncol=2)
+    axes[-1].set_xlabel("time [s]")
+    axes[0].set_title(title)
+    return _save(fig, path)
