@@ -11,6 +11,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -128,6 +129,11 @@ def minimize(
     target: float | None = None,
     progress: bool = False,
     on_chunk: Callable[[State, int], None] | None = None,
+    checkpoint_dir: str | Path | None = None,
+    checkpoint_every: int | None = None,
+    checkpoint_seconds: float | None = None,
+    keep: int = 3,
+    run_info: dict[str, Any] | None = None,
 ) -> Result:
     """Minimise ``problem`` with an EACO colony.
 
@@ -141,6 +147,15 @@ def minimize(
       target: stop after the chunk in which every seed's best cost is <= target.
       progress: show a progress bar (tqdm).
       on_chunk: called as ``on_chunk(state, iterations_done)`` after each chunk.
+      checkpoint_dir: save the run there (see :mod:`eaco_jax.checkpoint`); when the folder
+        already holds a checkpoint of this same run, continue from its newest complete step
+        (bit-identical to an unbroken run). A checkpoint of another run raises CheckpointError.
+      checkpoint_every / checkpoint_seconds: save after the chunk in which this many iterations
+        / seconds have passed since the last save (the end of the run is always saved).
+        ``checkpoint_every`` also caps the default chunk length so saves land on it.
+      keep: how many checkpoints to keep.
+      run_info: JSON-able dict stored with each checkpoint (``eaco resume`` reads
+        ``{"command": name, "args": {...}}`` from it).
     """
     strategy = default_strategy(problem) if strategy is None else strategy
     kind = getattr(problem, "kind", None)
@@ -153,13 +168,72 @@ def minimize(
     if not seeds:
         raise ValueError("seed sequence is empty")
     total = resolve_iterations(strategy, iterations, max_evaluations)
-    chunk = chunk_size or max(1, math.ceil(total / 20))
+    chunk = default_chunk(total, chunk_size, checkpoint_every)
     batched = len(seeds) > 1
 
     state = init_states(strategy, problem, seeds, params)
+    return run_resumable(
+        strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
+        target=target, progress=progress, on_chunk=on_chunk, checkpoint_dir=checkpoint_dir,
+        checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, keep=keep,
+        run_info=run_info,
+    )
+
+
+def default_chunk(total: int, chunk_size: int | None, checkpoint_every: int | None) -> int:
+    """Iterations per compiled call: given, else ~20 chunks per run, at most checkpoint_every."""
+    if chunk_size is not None:
+        if chunk_size < 1:
+            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+        return int(chunk_size)
+    chunk = max(1, math.ceil(total / 20))
+    return min(chunk, int(checkpoint_every)) if checkpoint_every else chunk
+
+
+def run_resumable(
+    strategy: Strategy,
+    problem: Any,
+    state: State,
+    *,
+    total: int,
+    chunk: int,
+    batched: bool,
+    seeds: list[int],
+    target: float | None = None,
+    progress: bool = False,
+    on_chunk: Callable[[State, int], None] | None = None,
+    checkpoint_dir: str | Path | None = None,
+    checkpoint_every: int | None = None,
+    checkpoint_seconds: float | None = None,
+    keep: int = 3,
+    run_info: dict[str, Any] | None = None,
+) -> Result:
+    """:func:`run_chunks` from a fresh ``state``, or from the checkpoint in ``checkpoint_dir``."""
+    if checkpoint_dir is None:
+        if checkpoint_every is not None or checkpoint_seconds is not None:
+            raise ValueError("checkpoint_every / checkpoint_seconds need a checkpoint_dir")
+        return run_chunks(
+            strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
+            target=target, progress=progress, on_chunk=on_chunk,
+        )
+    from eaco_jax.checkpoint import RunCheckpointer, run_identity, strong_types
+
+    state = strong_types(state)
+    identity = run_identity(problem, strategy, state.params, seeds, total, chunk)
+    ckpt = RunCheckpointer(
+        checkpoint_dir, identity, every=checkpoint_every, seconds=checkpoint_seconds,
+        keep=keep, run_info=run_info, batched=batched,
+    )
+    restored = ckpt.restore(state)
+    done, history = 0, None
+    if restored is not None:
+        state, done, history = restored.state, restored.done, [restored.history]
+        if restored.finished:
+            total = done
     return run_chunks(
         strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
-        target=target, progress=progress, on_chunk=on_chunk,
+        done=done, history=history, target=target, progress=progress, on_chunk=on_chunk,
+        checkpointer=ckpt,
     )
 
 
@@ -177,8 +251,13 @@ def run_chunks(
     target: float | None = None,
     progress: bool = False,
     on_chunk: Callable[[State, int], None] | None = None,
+    checkpointer: Any | None = None,
 ) -> Result:
-    """Run chunks from iteration ``done`` to ``total`` (used by minimize and by resume)."""
+    """Run chunks from iteration ``done`` to ``total`` (used by minimize and by resume).
+
+    ``checkpointer`` (a :class:`eaco_jax.checkpoint.RunCheckpointer`) is offered every chunk
+    boundary; it saves when due and always after the last chunk.
+    """
     history = [] if history is None else history
     compiled: dict[int, Any] = {}
     compile_seconds = 0.0
@@ -208,7 +287,10 @@ def run_chunks(
                 bar.set_postfix(best=float(np.min(np.asarray(state.best_cost))))
             if on_chunk is not None:
                 on_chunk(state, done)
-            if target is not None and bool(np.all(np.asarray(state.best_cost) <= target)):
+            reached = target is not None and bool(np.all(np.asarray(state.best_cost) <= target))
+            if checkpointer is not None:
+                checkpointer.after_chunk(state, done, history, finished=reached or done >= total)
+            if reached:
                 break
     finally:
         if bar is not None:
