@@ -1,0 +1,219 @@
+"""Checkpoints: exact resume, retention, refusal of foreign/corrupt/incompatible checkpoints."""
+
+import hashlib
+import shutil
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from test_driver import RandomSearch, Sphere
+
+import eaco_jax
+import eaco_jax as ea
+from eaco_jax.checkpoint import CheckpointError, latest_step, read_meta
+
+
+def _problem(scale=1.0):
+    return Sphere(lower=-scale * jnp.ones(3), upper=scale * jnp.ones(3))
+
+
+def _run(tmp, seed=1, iterations=30, **kw):
+    kw.setdefault("chunk_size", 5)
+    return ea.minimize(_problem(), RandomSearch(), seed=seed, iterations=iterations,
+                       checkpoint_dir=tmp, **kw)
+
+
+def _same(a, b):
+    np.testing.assert_array_equal(a.best_cost, b.best_cost)
+    np.testing.assert_array_equal(a.best_solution, b.best_solution)
+    assert a.history.keys() == b.history.keys()
+    for k in a.history:
+        np.testing.assert_array_equal(a.history[k], b.history[k], err_msg=k)
+    assert a.iterations == b.iterations
+
+
+def _fingerprint(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _steps(folder: Path) -> list[int]:
+    return sorted(int(p.name) for p in folder.iterdir() if p.name.isdigit())
+
+
+@pytest.mark.parametrize("seed", [1, [1, 2, 3]])
+def test_resume_from_every_step_is_bit_identical(tmp_path, seed):
+    unbroken = ea.minimize(_problem(), RandomSearch(), seed=seed, iterations=30, chunk_size=5)
+    full = tmp_path / "full"
+    first = _run(full, seed=seed, checkpoint_every=10, keep=5)
+    _same(unbroken, first)
+    assert _steps(full) == [10, 20, 30]
+    for step in (10, 20):  # pretend the run died right after saving `step`
+        part = tmp_path / f"upto{step}"
+        shutil.copytree(full, part)
+        for later in _steps(part):
+            if later > step:
+                shutil.rmtree(part / str(later))
+        resumed = _run(part, seed=seed, checkpoint_every=10)
+        _same(unbroken, resumed)
+        assert _steps(part)[-1] == 30
+    # a finished run in the folder is returned as it is
+    _same(unbroken, _run(full, seed=seed, checkpoint_every=10))
+
+
+def test_prng_key_and_counters_survive(tmp_path):
+    a = _run(tmp_path, iterations=20, checkpoint_every=5)
+    b = _run(tmp_path, iterations=20, checkpoint_every=5)
+    assert jax.dtypes.issubdtype(b.state.key.dtype, jax.dtypes.prng_key)
+    np.testing.assert_array_equal(jax.random.key_data(a.state.key),
+                                  jax.random.key_data(b.state.key))
+    assert int(b.state.iteration) == 20 and int(b.state.evaluations) == 20 * 8
+
+
+def test_keeps_last_k_and_time_trigger(tmp_path):
+    _run(tmp_path / "k", iterations=40, checkpoint_every=5, keep=2)
+    assert _steps(tmp_path / "k") == [35, 40]
+    # every chunk is "due" after 1e-9 s: one checkpoint per chunk (only the last 3 kept)
+    _run(tmp_path / "t", iterations=20, chunk_size=4, checkpoint_seconds=1e-9)
+    assert _steps(tmp_path / "t") == [12, 16, 20]
+    # without a trigger only the end of the run is saved
+    _run(tmp_path / "end", iterations=20)
+    assert _steps(tmp_path / "end") == [20]
+
+
+def test_checkpoint_every_sets_default_chunk(tmp_path):
+    ea.minimize(_problem(), RandomSearch(), seed=0, iterations=100, checkpoint_every=3,
+                checkpoint_dir=tmp_path, keep=100)
+    assert _steps(tmp_path)[:3] == [3, 6, 9] and _steps(tmp_path)[-1] == 100
+
+
+def test_target_stop_is_remembered(tmp_path):
+    a = _run(tmp_path, iterations=200, target=0.5, checkpoint_every=5)
+    assert a.iterations < 200
+    b = _run(tmp_path, iterations=200, target=0.5, checkpoint_every=5)
+    _same(a, b)
+
+
+@pytest.mark.parametrize(
+    "change, needle",
+    [
+        (dict(problem=_problem(2.0)), "problem hash"),
+        (dict(strategy=RandomSearch(num_ants=9)), "config fields"),
+        (dict(iterations=40), "config total"),
+        (dict(seed=7), "config seeds"),
+        (dict(chunk_size=6), "config chunk"),
+        (dict(params="scaled"), "config params_hash"),
+    ],
+)
+def test_foreign_checkpoint_refused_and_untouched(tmp_path, change, needle):
+    _run(tmp_path, checkpoint_every=10)
+    before = _fingerprint(tmp_path)
+    kw = dict(problem=_problem(), strategy=RandomSearch(), seed=1, iterations=30, chunk_size=5)
+    if change.get("params") == "scaled":
+        change = dict(params=type(RandomSearch().default_params(None))(scale=jnp.float32(0.5)))
+    kw.update(change)
+    problem, strategy = kw.pop("problem"), kw.pop("strategy")
+    with pytest.raises(CheckpointError, match=needle) as err:
+        ea.minimize(problem, strategy, checkpoint_dir=tmp_path, checkpoint_every=10, **kw)
+    assert "\n" not in str(err.value)
+    assert _fingerprint(tmp_path) == before
+
+
+def test_incompatible_version_refused(tmp_path, monkeypatch):
+    _run(tmp_path)
+    before = _fingerprint(tmp_path)
+    monkeypatch.setattr(eaco_jax, "__version__", "0.2.0")
+    with pytest.raises(CheckpointError, match="incompatible"):
+        _run(tmp_path)
+    monkeypatch.setattr(eaco_jax, "__version__", "0.1.7")  # patch releases are compatible
+    _run(tmp_path)
+    assert _fingerprint(tmp_path) == before
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garble", "meta"])
+def test_corrupt_checkpoint_refused_and_untouched(tmp_path, damage):
+    _run(tmp_path, checkpoint_every=10)
+    last = tmp_path / "30"
+    if damage == "meta":
+        target = last / "meta" / "metadata"
+        target.write_text(target.read_text()[:20])
+    else:
+        arrays = [p for p in (last / "state").rglob("*")
+                  if p.is_file() and p.parent.name == "d"]
+        assert arrays
+        for target in arrays:
+            data = target.read_bytes()
+            target.write_bytes(data[: len(data) // 2] if damage == "truncate"
+                               else bytes(b ^ 0x5A for b in data))
+    before = _fingerprint(tmp_path)
+    with pytest.raises(CheckpointError, match="corrupt") as err:
+        _run(tmp_path, checkpoint_every=10)
+    assert "\n" not in str(err.value)
+    assert _fingerprint(tmp_path) == before
+
+
+def test_half_written_step_is_ignored(tmp_path):
+    """A write killed before orbax's final rename leaves a tmp folder that is never restored."""
+    unbroken = _run(tmp_path / "ref", checkpoint_every=10)
+    ck = tmp_path / "ck"
+    shutil.copytree(tmp_path / "ref", ck)
+    shutil.rmtree(ck / "30")
+    shutil.copytree(ck / "20", ck / "30.orbax-checkpoint-tmp-1234")
+    shutil.rmtree(ck / "30.orbax-checkpoint-tmp-1234" / "state")
+    assert latest_step(ck) == 20
+    _same(unbroken, _run(ck, checkpoint_every=10))
+    assert latest_step(ck) == 30
+
+
+def test_bad_arguments(tmp_path):
+    with pytest.raises(ValueError, match="need a checkpoint_dir"):
+        ea.minimize(_problem(), RandomSearch(), iterations=5, checkpoint_every=2)
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        _run(tmp_path, checkpoint_every=0)
+    with pytest.raises(CheckpointError, match="no checkpoint"):
+        read_meta(tmp_path / "nothing")
+
+
+def test_eaco_resume_cli_continues_stored_command(tmp_path):
+    from typer.testing import CliRunner
+
+    from eaco_jax.cli import app
+    from eaco_jax.cli.common import RUNNERS, emit_json
+
+    def toy_runner(iterations, seed, checkpoint_dir, checkpoint_every, quiet=False):
+        res = ea.minimize(_problem(), RandomSearch(), seed=seed, iterations=iterations,
+                          checkpoint_dir=checkpoint_dir, checkpoint_every=checkpoint_every,
+                          chunk_size=5, progress=not quiet,
+                          run_info={"command": "toy", "args": dict(
+                              iterations=iterations, seed=seed, checkpoint_dir=checkpoint_dir,
+                              checkpoint_every=checkpoint_every, quiet=quiet)})
+        return {"best": float(res.best_cost), "iterations": res.iterations,
+                "history_best": res.history["best_cost"]}
+
+    RUNNERS["toy"] = toy_runner
+    try:
+        unbroken = toy_runner(30, 4, str(tmp_path / "a"), 10)
+        toy_runner(30, 4, str(tmp_path / "b"), 10)
+        shutil.rmtree(tmp_path / "b" / "30")
+        shutil.rmtree(tmp_path / "b" / "20")
+        out = CliRunner().invoke(app, ["resume", str(tmp_path / "b"), "--json"])
+        assert out.exit_code == 0, out.output
+        import json
+
+        record = json.loads(out.stdout.strip().splitlines()[-1])
+        import io
+        import sys
+
+        buf, old = io.StringIO(), sys.stdout
+        sys.stdout = buf
+        try:
+            emit_json(unbroken)
+        finally:
+            sys.stdout = old
+        assert record == json.loads(buf.getvalue())
+        bad = CliRunner().invoke(app, ["resume", str(tmp_path / "missing")])
+        assert bad.exit_code == 2 and "does not exist" in bad.output
+    finally:
+        RUNNERS.pop("toy", None)
