@@ -1,0 +1,149 @@
+"""Tour construction (Eq. 2, tabu masks, q0 rule, candidate lists) and the logistic map."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from eaco_jax import chaos
+from eaco_jax.construction import (
+    choice_weights,
+    construct_tours,
+    greedy_tour,
+    heuristic_log_eta,
+    tour_lengths,
+)
+
+
+def _instance(n: int = 12, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0, 100, (n, 2))
+    d = np.rint(np.linalg.norm(xy[:, None] - xy[None], axis=-1))
+    np.fill_diagonal(d, 0)
+    d = np.maximum(d, np.where(np.eye(n), 0, 1))
+    tau = rng.uniform(0.5, 1.5, (n, n))
+    tau = (tau + tau.T) / 2
+    nbr = np.argsort(np.where(np.eye(n), np.inf, d), axis=1)[:, :4].astype(np.int32)
+    return jnp.asarray(d, jnp.float32), jnp.asarray(tau, jnp.float32), jnp.asarray(nbr)
+
+
+def _is_perm(tours: np.ndarray) -> bool:
+    n = tours.shape[1]
+    return bool(np.all(np.sort(tours, axis=1) == np.arange(n)))
+
+
+@pytest.mark.parametrize("use_candidates", [False, True])
+def test_every_tour_is_a_permutation_from_its_start(use_candidates):
+    d, tau, nbr = _instance()
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    starts = jnp.arange(30, dtype=jnp.int32) % 12
+    tours = np.asarray(construct_tours(
+        jax.random.key(1), w, starts, q0=0.3, candidates=nbr if use_candidates else None))
+    assert tours.shape == (30, 12) and tours.dtype == np.int32
+    assert _is_perm(tours)
+    np.testing.assert_array_equal(tours[:, 0], np.asarray(starts))
+
+
+@pytest.mark.parametrize("use_candidates", [False, True])
+def test_tabu_respected_even_when_a_visited_node_dominates(use_candidates):
+    """Node 0 has overwhelming weight from everywhere; once visited it must never recur."""
+    d, tau, nbr = _instance()
+    tau = tau.at[:, 0].set(1e6)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 1.0)
+    tours = np.asarray(construct_tours(jax.random.key(2), w, jnp.zeros(8, jnp.int32), q0=0.0,
+                                       candidates=nbr if use_candidates else None))
+    assert _is_perm(tours)
+    assert np.all(tours[:, 0] == 0)
+
+
+def _numpy_greedy(w: np.ndarray, start: int) -> list[int]:
+    n = w.shape[0]
+    tour, seen = [start], {start}
+    for _ in range(n - 1):
+        row = np.where([j in seen for j in range(n)], -np.inf, w[tour[-1]])
+        nxt = int(np.argmax(row))
+        tour.append(nxt)
+        seen.add(nxt)
+    return tour
+
+
+def test_q0_one_gives_the_greedy_argmax_tour():
+    d, tau, _ = _instance()
+    alpha, beta = 1.0, 2.0
+    raw = np.asarray(tau, np.float64) ** alpha * (1.0 / np.maximum(np.asarray(d), 0.5)) ** beta
+    np.fill_diagonal(raw, 0)
+    w = choice_weights(tau, heuristic_log_eta(d), alpha, beta)
+    tours = np.asarray(construct_tours(jax.random.key(3), w, jnp.arange(12, dtype=jnp.int32),
+                                       q0=1.0))
+    for s in range(12):
+        assert tours[s].tolist() == _numpy_greedy(raw, s)
+    assert np.asarray(greedy_tour(w, 5)).tolist() == _numpy_greedy(raw, 5)
+
+
+def test_first_step_follows_eq2_probabilities():
+    """Empirical next-node frequencies from node 0 match tau^a eta^b / sum over allowed."""
+    d, tau, _ = _instance(n=6, seed=4)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 1.0)
+    m = 20000
+    tours = np.asarray(construct_tours(jax.random.key(4), w, jnp.zeros(m, jnp.int32), q0=0.0))
+    freq = np.bincount(tours[:, 1], minlength=6) / m
+    raw = np.asarray(tau[0], np.float64) / np.asarray(d[0], np.float64).clip(0.5)
+    raw[0] = 0
+    np.testing.assert_allclose(freq, raw / raw.sum(), atol=0.015)
+
+
+def test_candidate_step_samples_only_allowed_candidates_and_falls_back_to_best():
+    d, tau, nbr = _instance(n=10, seed=5)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    tours = np.asarray(construct_tours(jax.random.key(5), w, jnp.zeros(500, jnp.int32),
+                                       q0=0.0, candidates=nbr))
+    # first move from node 0 is always one of its candidates
+    assert set(np.unique(tours[:, 1])) <= set(np.asarray(nbr[0]).tolist())
+    assert _is_perm(tours)
+
+
+def test_row_offset_lets_one_ant_use_other_weights():
+    d, tau, _ = _instance()
+    w1 = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    w2 = choice_weights(tau, heuristic_log_eta(d), 1.0, 0.0)  # pheromone only
+    stacked = jnp.concatenate([w1, w2])
+    tours = construct_tours(jax.random.key(6), stacked, jnp.zeros(2, jnp.int32), q0=1.0,
+                            row_offset=jnp.array([0, 12], jnp.int32))
+    assert np.array_equal(tours[0], greedy_tour(w1, 0))
+    assert np.array_equal(tours[1], greedy_tour(w2, 0))
+
+
+def test_chaos_factor_changes_choices_and_keeps_permutations():
+    d, tau, _ = _instance()
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    starts = jnp.zeros(16, jnp.int32)
+    x = chaos.logistic_init(jax.random.key(7), (16, 12))
+    plain = construct_tours(jax.random.key(8), w, starts, q0=1.0)
+    shaken = construct_tours(jax.random.key(8), w, starts, q0=1.0,
+                             factor=chaos.perturbation(x, jnp.float32(0.9)))
+    assert _is_perm(np.asarray(shaken))
+    assert not np.array_equal(plain, shaken)
+
+
+def test_logistic_map_stays_inside_and_keeps_moving():
+    x = jnp.array([0.5, 0.75, 0.25, 1e-7, 0.3], jnp.float32)
+    seen = []
+    for _ in range(200):
+        x = chaos.logistic_step(x)
+        seen.append(np.asarray(x))
+    seen = np.array(seen)
+    assert np.all((seen > 0) & (seen < 1))
+    assert np.all(np.std(seen[-50:], axis=0) > 0.05)  # no absorbing / fixed point
+    np.testing.assert_allclose(chaos.logistic_step(jnp.float32(0.3)), 4 * 0.3 * 0.7, rtol=1e-6)
+
+
+def test_tour_lengths_and_weights_underflow_safe():
+    d, tau, _ = _instance()
+    tours = jnp.stack([jnp.arange(12), jnp.arange(12)[::-1]]).astype(jnp.int32)
+    want = [sum(float(d[t[i], t[(i + 1) % 12]]) for i in range(12)) for t in np.asarray(tours)]
+    np.testing.assert_allclose(tour_lengths(d, tours), want)
+    w = choice_weights(tau * 1e-30, heuristic_log_eta(d * 1e4), 1.0, 12.0)
+    assert np.all(np.isfinite(w)) and np.allclose(np.max(w, axis=1), 1.0)
+    assert np.all(np.diag(np.asarray(w)) == 0)
