@@ -1,0 +1,121 @@
+"""Constraint handling: how two (objective, violation) pairs compare.
+
+Three selectable methods, all pure functions of arrays so a strategy can sort its archive
+with them under ``jit``/``vmap``:
+
+* ``"penalty"`` - the paper's static penalty: cost = f + PEN * violation.
+* ``"deb"`` - Deb's feasibility rules (Deb 2000): a feasible solution beats an infeasible one;
+  two feasible ones compare by f; two infeasible ones by violation.
+* ``"epsilon"`` - the epsilon-constrained method (Takahama & Sakai 2006): violations up to
+  epsilon count as zero, then Deb's rules; epsilon shrinks to 0 on a schedule
+  (:func:`epsilon_schedule`).
+
+Violation is the CEC2006 total (see :func:`eaco_jax.problems.constrained.violation_of`:
+inequality excess plus equality excess beyond |h| <= 1e-4), so ``violation == 0`` is feasible.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+Array = jax.Array
+
+METHODS = ("epsilon", "deb", "penalty")
+
+
+def check_method(method: str) -> str:
+    """``method`` if known, else a ValueError naming the choices."""
+    if method not in METHODS:
+        raise ValueError(f"unknown constraint method {method!r}; choose one of {METHODS}")
+    return method
+
+
+def sort_keys(f: Array, violation: Array, method: str, epsilon: Array = 0.0,
+              penalty: Array = 0.3) -> tuple[Array, Array]:
+    """``(primary, secondary)`` keys: a is better than b iff (p_a, s_a) < (p_b, s_b) lexically.
+
+    * penalty: ``(f + PEN * v, 0)``
+    * deb: ``(v, f)`` - v == 0 for feasible, so feasible < infeasible, ties broken by f
+    * epsilon: ``(v if v > eps else 0, f)``
+    """
+    check_method(method)
+    f = jnp.where(jnp.isnan(f), jnp.inf, f)
+    violation = jnp.where(jnp.isnan(violation), jnp.inf, violation)
+    if method == "penalty":
+        return f + penalty * violation, jnp.zeros_like(f)
+    if method == "deb":
+        return violation, f
+    return jnp.where(violation <= epsilon, jnp.zeros_like(violation), violation), f
+
+
+def better(f_a: Array, v_a: Array, f_b: Array, v_b: Array, method: str,
+           epsilon: Array = 0.0, penalty: Array = 0.3) -> Array:
+    """True where solution a is strictly better than solution b under ``method``."""
+    pa, sa = sort_keys(f_a, v_a, method, epsilon, penalty)
+    pb, sb = sort_keys(f_b, v_b, method, epsilon, penalty)
+    return (pa < pb) | ((pa == pb) & (sa < sb))
+
+
+def rank_order(f: Array, violation: Array, method: str, epsilon: Array = 0.0,
+               penalty: Array = 0.3) -> Array:
+    """Indices that sort solutions best first (stable)."""
+    primary, secondary = sort_keys(f, violation, method, epsilon, penalty)
+    return jnp.lexsort((secondary, primary))
+
+
+def epsilon_schedule(iteration: Array, epsilon0: Array, cutoff: Array,
+                     exponent: Array) -> Array:
+    """Takahama & Sakai's epsilon level: eps0 * (1 - t/Tc)^cp for t < Tc, then 0."""
+    t = jnp.asarray(iteration, jnp.float32)
+    frac = jnp.clip(1.0 - t / jnp.maximum(cutoff, 1.0), 0.0, 1.0)
+    return jnp.where(t < cutoff, epsilon0 * frac**exponent, 0.0)
+
+
+def initial_epsilon(violation: Array, fraction: Array) -> Array:
+    """eps(0): the violation of the solution at quantile ``fraction`` of the first colony."""
+    v = jnp.sort(jnp.where(jnp.isfinite(violation), violation, jnp.inf))
+    i = jnp.clip(jnp.floor(fraction * (v.shape[0] - 1)).astype(jnp.int32), 0, v.shape[0] - 1)
+    finite_max = jnp.max(jnp.where(jnp.isfinite(v), v, 0.0))
+    return jnp.where(jnp.isfinite(v[i]), v[i], finite_max)
+
+
+# --------------------------------------------------------------------------- gradient repair
+def repair_step(problem: object, x: Array, margin: Array) -> Array:
+    """One Newton step towards the violated constraints' boundary (min-norm, pseudo-inverse).
+
+    The rows are the violated inequalities (target g_i = -margin * |grad g_i|, a hair inside,
+    so a converged ant is feasible, not 1e-12 outside) and all equalities (target h = 0):
+    ``x + J^+ (target - c)``, clipped to the box. This is the gradient-based mutation of the
+    epsilon-DE (Takahama & Sakai 2006) with the Jacobian from ``jax.jacobian`` instead of
+    finite differences.
+    """
+    g, h = problem.constraints(x)
+    jg, jh = jax.jacobian(problem.constraints)(x)
+    norm_g = jnp.linalg.norm(jg, axis=1)
+    resid_g = g + margin * norm_g
+    rows_g = resid_g > 0
+    c = jnp.concatenate([jnp.where(rows_g, resid_g, 0.0), h])
+    jac = jnp.concatenate([jnp.where(rows_g[:, None], jg, 0.0), jh], axis=0)
+    step = -jnp.linalg.pinv(jac) @ c
+    step = jnp.where(jnp.all(jnp.isfinite(step)), step, 0.0)
+    return jnp.clip(x + step, problem.lower, problem.upper)
+
+
+def gradient_repair(problem: object, x: Array, steps: int, margin: Array,
+                    enabled: Array = True) -> tuple[Array, Array]:
+    """Up to ``steps`` repair steps on one ant while it is infeasible.
+
+    Returns the repaired ant and the number of steps taken (each evaluates the constraints and
+    their Jacobian at a new point; the strategy charges one evaluation per step).
+    """
+    if problem.num_inequality + problem.num_equality == 0 or steps <= 0:
+        return x, jnp.zeros((), jnp.int32)
+
+    def body(_: int, carry: tuple[Array, Array]) -> tuple[Array, Array]:
+        y, n = carry
+        todo = enabled & (problem.violation_one(y) > 0)
+        y = jnp.where(todo, repair_step(problem, y, margin), y)
+        return y, n + todo.astype(jnp.int32)
+
+    return jax.lax.fori_loop(0, steps, body, (x, jnp.zeros((), jnp.int32)))

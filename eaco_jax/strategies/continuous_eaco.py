@@ -1,0 +1,380 @@
+"""Continuous EACO: an elitist, mutated, archive-based ant colony for constrained real problems.
+
+Our reading of the paper for real vectors (PAPER_NOTES.md section 2):
+
+* **Pheromone = ranked archive** (ACO_R, Socha & Dorigo 2008, EJOR 185:1155-1173): ``k``
+  solutions sorted best first by the selected constraint-handling order
+  (:mod:`eaco_jax.constraints`). Rank ``l`` has weight ``exp(-l^2 / (2 (q k)^2))``.
+* **Construction**: with probability ``q0`` (the paper's exploitation parameter) an ant is
+  guided by the archive's best, otherwise by a rank-weighted guide; each coordinate is drawn from
+  a Gaussian around the guide with width ``rho * mean |x_e - x_guide|`` over the archive (``rho``
+  is ACO_R's xi: pheromone evaporation = how fast the width shrinks).
+* **Mutated**: with probability ``p_crossover`` an ant is the Laplace-crossover child of its
+  guide and a second rank-weighted archive member; with probability ``p_mutation`` it then
+  undergoes power mutation (Deep & Thakur 2007, :mod:`eaco_jax.real_ops`).
+* **Chaos**: each ant carries a logistic-map sequence z <- 4z(1-z); while the best has not
+  improved for ``chaos_patience`` iterations, a fraction ``chaos_rate`` of ants is placed at
+  ``best + chaos_strength * (2z - 1) * (upper - lower)`` to escape stagnation.
+* **Elitist**: the archive is the best ``k`` of archive + colony, so the best always survive.
+* **Gradient repair** (``repair_steps``): infeasible ants take Newton steps on their violated
+  constraints, with Jacobians from ``jax.jacobian`` (:func:`eaco_jax.constraints.gradient_repair`).
+* **Local refinement** (``refine_ants``): the last ants of each colony are SQP-style steps from
+  the archive's best (Newton on the KKT conditions of its active constraints, with the
+  Lagrangian Hessian from autodiff, at step lengths 1, 1/4, 1/16, ...). They are ordinary ants:
+  evaluated by the driver and kept only if the archive order says they are better.
+* Bounds are exact: every ant is clipped to ``[lower, upper]`` after every operator.
+
+Evaluation accounting: every point whose objective/constraints are computed costs one
+evaluation: the driver's colony (``num_ants``), the initial archive (``archive_size``), each
+repair step (1 per step per ant) and the refinement's derivatives (``dim + 1`` per iteration,
+what a finite-difference gradient would cost; autodiff Hessians are charged the same).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from eaco_jax import constraints as ch
+from eaco_jax.problem import Evaluation
+from eaco_jax.problems.constrained import ConstrainedProblem
+from eaco_jax.real_ops import laplace_crossover_sample, power_mutation_sample
+from eaco_jax.strategy import HISTORY_FIELDS, State, Strategy, base_fields
+
+Array = jax.Array
+
+#: success rule of CEC2006: feasible and f - f* <= this
+TARGET_TOLERANCE = 1e-4
+
+
+@struct.dataclass
+class ContinuousParams:
+    """Traced hyper-parameters (vmappable for sweeps such as the paper's Table 3)."""
+
+    q0: Array = 0.5  # fraction of ants guided by the archive's best (exploitation)
+    rho: Array = 0.6  # ACO_R xi: Gaussian width = rho * archive spread around the guide
+    locality: Array = 0.2  # ACO_R q: rank-weight locality (small -> greedy on top ranks)
+    p_crossover: Array = 0.3  # probability an ant is a Laplace-crossover child
+    p_mutation: Array = 0.2  # probability an ant is power-mutated
+    laplace_a: Array = 0.0  # Laplace crossover location a
+    laplace_b: Array = 0.15  # Laplace crossover scale b
+    power_index: Array = 10.0  # power mutation index p
+    penalty: Array = 0.3  # PEN of the static penalty method
+    eps_fraction: Array = 0.2  # eps(0) = violation at this quantile of the initial archive
+    eps_cutoff: Array = 50.0  # Tc: iterations after which eps = 0
+    eps_exponent: Array = 5.0  # cp of the epsilon schedule
+    chaos_rate: Array = 0.1  # fraction of ants placed by the chaotic map while stagnating
+    chaos_strength: Array = 0.05  # chaotic displacement, as a fraction of the box width
+    chaos_patience: Array = 20.0  # iterations without improvement before chaos acts
+    restart_patience: Array = 100.0  # stagnation before a chaotic restart of the archive
+    p_repair: Array = 1.0  # probability an infeasible ant gets gradient repair
+    repair_margin: Array = 1e-10  # repair aims this far inside (fraction of mean box width)
+    refine_active: Array = 1e-3  # inequality counts as active within this distance (box frac.)
+
+
+@struct.dataclass
+class ContinuousState(State):
+    problem: ConstrainedProblem
+    archive_x: Array
+    archive_f: Array
+    archive_v: Array
+    epsilon0: Array
+    epsilon: Array
+    chaos: Array
+    archive_chaos: Array
+    best_f: Array
+    best_violation: Array
+    target_evaluations: Array
+    target_iteration: Array
+
+
+@dataclasses.dataclass(frozen=True)
+class ContinuousEACO(Strategy):
+    """Elitist-mutated continuous ant colony with constraint handling (see module docstring)."""
+
+    num_ants: int = 20
+    archive_size: int = 30
+    constraint_method: str = "epsilon"
+    repair_steps: int = 3
+    refine_ants: int = 4
+    problem_kind = "continuous"
+
+    def __post_init__(self) -> None:
+        ch.check_method(self.constraint_method)
+        if self.num_ants < 1 or self.archive_size < 2:
+            raise ValueError("ContinuousEACO needs num_ants >= 1 and archive_size >= 2")
+        if not 0 <= self.refine_ants <= self.num_ants:
+            raise ValueError(f"refine_ants must be in [0, num_ants={self.num_ants}]")
+        if self.repair_steps < 0:
+            raise ValueError("repair_steps must be >= 0")
+
+    def default_params(self, problem: Any = None) -> ContinuousParams:
+        return ContinuousParams()
+
+    # ----------------------------------------------------------------- helpers
+    def _order(self, f: Array, v: Array, params: ContinuousParams, eps: Array) -> Array:
+        return ch.rank_order(f, v, self.constraint_method, eps, params.penalty)
+
+    @staticmethod
+    def _check_problem(problem: Any) -> None:
+        if not isinstance(problem, ConstrainedProblem):
+            raise TypeError(
+                "ContinuousEACO needs an eaco_jax.problems.ConstrainedProblem, got "
+                f"{type(problem).__name__}"
+            )
+
+    def init(self, key: Array, problem: Any, params: ContinuousParams | None = None) -> State:
+        self._check_problem(problem)
+        return super().init(key, problem, params)
+
+    # ----------------------------------------------------------------- init
+    def _init(self, key: Array, problem: ConstrainedProblem,
+              params: ContinuousParams) -> ContinuousState:
+        dtype = problem.dtype
+        params = jax.tree.map(lambda a: jnp.asarray(a, dtype), params)
+        k_arch, k_chaos, k_arch2, k_run = jax.random.split(key, 4)
+        lo, hi = problem.lower, problem.upper
+        x = lo + (hi - lo) * jax.random.uniform(k_arch, (self.archive_size, problem.dim), dtype)
+        ev = problem.evaluate(x)
+        f = jnp.where(jnp.isnan(ev.f), jnp.inf, ev.f)
+        v = jnp.where(jnp.isnan(ev.violation), jnp.inf, ev.violation)
+        eps0 = ch.initial_epsilon(v, params.eps_fraction) if self.constraint_method == "epsilon" \
+            else jnp.zeros((), dtype)
+        order = self._order(f, v, params, eps0)
+        x, f, v = x[order], f[order], v[order]
+        best = ch.rank_order(f, v, "deb")[0]
+        base = base_fields(k_run, params, x[best])
+        base["evaluations"] = jnp.asarray(self.archive_size, jnp.int32)
+        base["best_cost"] = jnp.where(v[best] > 0, jnp.inf, f[best]).astype(jnp.float32)
+        return ContinuousState(
+            **base,
+            problem=problem,
+            archive_x=x,
+            archive_f=f,
+            archive_v=v,
+            epsilon0=jnp.asarray(eps0, dtype),
+            epsilon=jnp.asarray(eps0, dtype),
+            chaos=jax.random.uniform(k_chaos, (self.num_ants, problem.dim), dtype, 0.01, 0.99),
+            archive_chaos=jax.random.uniform(
+                k_arch2, (self.archive_size, problem.dim), dtype, 0.01, 0.99),
+            best_f=f[best],
+            best_violation=v[best],
+            target_evaluations=jnp.asarray(-1, jnp.int32),
+            target_iteration=jnp.asarray(-1, jnp.int32),
+        )
+
+    # ----------------------------------------------------------------- ask
+    def _ask(self, key: Array, state: ContinuousState) -> tuple[Array, ContinuousState]:
+        problem, p = state.problem, state.params
+        lo, hi = problem.lower, problem.upper
+        m, k, n = self.num_ants, self.archive_size, problem.dim
+        dtype = problem.dtype
+        state = self._chaotic_restart(state)
+        arch = state.archive_x
+        keys = jax.random.split(key, 10)
+
+        # guides: best with probability q0, else by rank weight (ACO_R)
+        ranks = jnp.arange(k, dtype=dtype)
+        logw = -(ranks**2) / (2.0 * (p.locality * k) ** 2)
+        greedy = jax.random.uniform(keys[0], (m,), dtype) < p.q0
+        guide = jnp.where(greedy, 0, jax.random.categorical(keys[1], logw, shape=(m,)))
+        partner = jax.random.categorical(keys[2], logw, shape=(m,))
+        xg = arch[guide]
+
+        # Gaussian sampling, width from the archive spread around the guide
+        spread = jnp.mean(jnp.abs(arch[None, :, :] - xg[:, None, :]), axis=1) * k / (k - 1)
+        sigma = jnp.maximum(p.rho * spread, 1e-12 * (hi - lo))
+        x = jnp.clip(xg + sigma * jax.random.normal(keys[3], (m, n), dtype), lo, hi)
+
+        # Laplace crossover of guide and partner (one of the two offspring, at random)
+        ck = jax.random.split(keys[4], m)
+        y1, y2 = jax.vmap(lambda kk, a, b: laplace_crossover_sample(
+            kk, a, b, lo, hi, p.laplace_a, p.laplace_b))(ck, xg, arch[partner])
+        pick = jax.random.bernoulli(keys[5], 0.5, (m, 1))
+        child = jnp.where(pick, y1, y2)
+        do_cross = jax.random.uniform(keys[6], (m, 1), dtype) < p.p_crossover
+        x = jnp.where(do_cross, child, x)
+
+        # power mutation: mutated ants change each coordinate w.p. 1/n (at least one)
+        mk = jax.random.split(keys[7], 3)
+        mutated = jax.vmap(lambda kk, a: power_mutation_sample(kk, a, lo, hi, p.power_index))(
+            jax.random.split(mk[0], m), x)
+        coord = (jax.random.uniform(mk[1], (m, n), dtype) < 1.0 / n) | (
+            jnp.arange(n)[None, :] == jax.random.randint(mk[2], (m, 1), 0, n))
+        do_mut = jax.random.uniform(keys[8], (m, 1), dtype) < p.p_mutation
+        x = jnp.where(do_mut & coord, mutated, x)
+
+        # chaos perturbation around the best while stagnating (logistic map per ant/coordinate)
+        z = 4.0 * state.chaos * (1.0 - state.chaos)
+        z = jnp.clip(jnp.where(jnp.abs(z - 0.75) < 1e-6, 0.7501, z), 1e-4, 1.0 - 1e-4)
+        stagnating = state.stagnation >= p.chaos_patience
+        ck2 = jax.random.split(keys[9], 2)
+        do_chaos = stagnating & (jax.random.uniform(ck2[0], (m, 1), dtype) < p.chaos_rate)
+        chaotic = jnp.clip(arch[0] + p.chaos_strength * (2.0 * z - 1.0) * (hi - lo), lo, hi)
+        x = jnp.where(do_chaos, chaotic, x)
+
+        extra = jnp.zeros((), jnp.int32)
+        # local refinement: SQP-style steps from the archive's best as the last ants
+        if self.refine_ants > 0:
+            d = sqp_direction(problem, arch[0], p.refine_active, p.repair_margin)
+            alpha = 0.25 ** jnp.arange(self.refine_ants, dtype=dtype)
+            cand = jnp.clip(arch[0][None, :] + alpha[:, None] * d[None, :], lo, hi)
+            x = x.at[m - self.refine_ants:].set(cand)
+            extra = extra + n + 1
+
+        # gradient repair of infeasible ants
+        margin = p.repair_margin * jnp.mean(hi - lo)
+        enabled = jax.random.uniform(ck2[1], (m,), dtype) < p.p_repair
+        x, steps = jax.vmap(
+            lambda a, e: ch.gradient_repair(problem, a, self.repair_steps, margin, e))(x, enabled)
+        extra = extra + jnp.sum(steps).astype(jnp.int32)
+        return x, state.replace(chaos=z, evaluations=state.evaluations + extra)
+
+    def _chaotic_restart(self, state: ContinuousState) -> ContinuousState:
+        """After ``restart_patience`` iterations without progress, re-seed the archive.
+
+        The best archive member stays (elitism); the other ``k - 1`` are placed by the
+        archive's logistic-map sequences over the whole box and evaluated here (charged).
+        """
+        p, problem = state.params, state.problem
+        lo, hi = problem.lower, problem.upper
+        z = 4.0 * state.archive_chaos * (1.0 - state.archive_chaos)
+        z = jnp.clip(jnp.where(jnp.abs(z - 0.75) < 1e-6, 0.7501, z), 1e-4, 1.0 - 1e-4)
+        restart = state.stagnation >= p.restart_patience
+
+        def reseed(s: ContinuousState) -> ContinuousState:
+            fresh = lo + z[1:] * (hi - lo)
+            ev = s.problem.evaluate(fresh)
+            x = jnp.concatenate([s.archive_x[:1], fresh])
+            f = jnp.concatenate([s.archive_f[:1], jnp.where(jnp.isnan(ev.f), jnp.inf, ev.f)])
+            v = jnp.concatenate([s.archive_v[:1],
+                                 jnp.where(jnp.isnan(ev.violation), jnp.inf, ev.violation)])
+            order = self._order(f, v, p, s.epsilon)
+            return s.replace(archive_x=x[order], archive_f=f[order], archive_v=v[order],
+                             stagnation=jnp.zeros_like(s.stagnation),
+                             evaluations=s.evaluations + (self.archive_size - 1))
+
+        state = jax.lax.cond(restart, reseed, lambda s: s, state)
+        return state.replace(archive_chaos=z)
+
+    # ----------------------------------------------------------------- tell
+    def _tell(self, state: ContinuousState, solutions: Array,
+              fitness: Evaluation) -> ContinuousState:
+        p = state.params
+        f = fitness.f.astype(state.archive_f.dtype)
+        v = fitness.violation.astype(state.archive_v.dtype)
+        eps = ch.epsilon_schedule(state.iteration + 1, state.epsilon0, p.eps_cutoff,
+                                  p.eps_exponent).astype(state.epsilon.dtype)
+        if self.constraint_method != "epsilon":
+            eps = state.epsilon
+        all_x = jnp.concatenate([state.archive_x, solutions.astype(state.archive_x.dtype)])
+        all_f = jnp.concatenate([state.archive_f, f])
+        all_v = jnp.concatenate([state.archive_v, v])
+        keep = self._order(all_f, all_v, p, eps)[: self.archive_size]
+
+        # best so far by Deb's rules (feasible first), whatever the archive order is
+        i = ch.rank_order(f, v, "deb")[0]
+        improved = ch.better(f[i], v[i], state.best_f, state.best_violation, "deb")
+        best_f = jnp.where(improved, f[i], state.best_f)
+        best_v = jnp.where(improved, v[i], state.best_violation)
+        evaluations = state.evaluations + solutions.shape[0]
+        target_evals, target_iter = state.target_evaluations, state.target_iteration
+        f_star = state.problem.f_star
+        if f_star is not None:
+            hit = (best_v <= 0) & (best_f - f_star <= TARGET_TOLERANCE) & (target_evals < 0)
+            target_evals = jnp.where(hit, evaluations, target_evals)
+            target_iter = jnp.where(hit, state.iteration + 1, target_iter)
+        lo, hi = state.problem.lower, state.problem.upper
+        ax = all_x[keep]
+        diversity = jnp.clip(jnp.mean(jnp.std(ax, axis=0) / (hi - lo)) * 12**0.5, 0.0, 1.0)
+        return state.replace(
+            archive_x=ax,
+            archive_f=all_f[keep],
+            archive_v=all_v[keep],
+            epsilon=eps,
+            best_f=best_f,
+            best_violation=best_v,
+            best_solution=jnp.where(improved, solutions[i].astype(ax.dtype), state.best_solution),
+            best_cost=jnp.where(best_v > 0, jnp.inf, best_f).astype(jnp.float32),
+            stagnation=jnp.where(improved, 0, state.stagnation + 1),
+            diversity=diversity.astype(jnp.float32),
+            target_evaluations=target_evals,
+            target_iteration=target_iter,
+        )
+
+    def scalar_cost(self, fitness: Evaluation) -> Array:
+        """Objective of feasible ants, +inf for infeasible ones (iteration statistics)."""
+        return jnp.where(fitness.violation > 0, jnp.inf, fitness.f).astype(jnp.float32)
+
+    def stats(self, state: ContinuousState) -> dict[str, Array]:
+        out = {name: getattr(state, name) for name in HISTORY_FIELDS}
+        out.update(best_f=state.best_f, best_violation=state.best_violation,
+                   evaluations=state.evaluations, epsilon=state.epsilon)
+        return out
+
+
+# --------------------------------------------------------------------------- refinement
+def sqp_direction(problem: ConstrainedProblem, x: Array, active_frac: Array,
+                  margin_frac: Array) -> Array:
+    """Newton (SQP) step on the KKT conditions of the constraints active at ``x``.
+
+    Active set: all equalities, inequalities and box bounds within ``active_frac`` of the mean
+    box width (first-order distance |c| / |grad c|), minus inequalities whose least-squares
+    multiplier is negative. With ``J`` their Jacobian, ``P`` the projector on its null space and
+    ``H`` the Lagrangian Hessian, the step is ``d = d_r + P z`` where ``d_r = -J^+ c`` restores
+    the active constraints and ``z`` solves the reduced Newton system ``P H P z = -P (grad f +
+    H d_r)`` with negative curvature flipped (|eigenvalues|) so it is a descent step.
+    """
+    n = problem.dim
+    dtype = x.dtype
+    eye = jnp.eye(n, dtype=dtype)
+    lo, hi = problem.lower, problem.upper
+    scale = jnp.mean(hi - lo)
+    gf = jax.grad(lambda y: jnp.asarray(problem.objective(y), dtype).reshape(()))(x)
+    hf = jax.hessian(lambda y: jnp.asarray(problem.objective(y), dtype).reshape(()))(x)
+    g, h = problem.constraints(x)
+    jg, jh = jax.jacobian(problem.constraints)(x)
+    hg, hh = jax.hessian(problem.constraints)(x)
+    ng = jnp.linalg.norm(jg, axis=1)
+    p, q = problem.num_inequality, problem.num_equality
+    c = jnp.concatenate([g + margin_frac * scale * ng, h, x - hi, lo - x])
+    jac = jnp.concatenate([jg, jh, eye, -eye], axis=0)
+    raw = jnp.concatenate([g, h, x - hi, lo - x])
+    norms = jnp.linalg.norm(jac, axis=1)
+    is_eq = jnp.concatenate([jnp.zeros(p, bool), jnp.ones(q, bool), jnp.zeros(2 * n, bool)])
+    near = raw >= -active_frac * scale * jnp.maximum(norms, 1e-30)
+    near = near & (norms > 0)
+    # a variable cannot sit on both bounds: keep the nearer one (fixed variables have lo == hi)
+    up_closer = (hi - x) <= (x - lo)
+    near = near.at[p + q: p + q + n].set(near[p + q: p + q + n] & up_closer)
+    near = near.at[p + q + n:].set(near[p + q + n:] & ~up_closer)
+    active0 = is_eq | near
+
+    def multipliers(active: Array) -> tuple[Array, Array, Array]:
+        ja = jac * active[:, None]
+        jp = jnp.linalg.pinv(ja)
+        return ja, jp, -(jp.T @ gf)
+
+    _, _, lam0 = multipliers(active0)
+    active = active0 & (is_eq | (lam0 >= 0))
+    ja, jp, lam = multipliers(active)
+    lam = jnp.where(active, lam, 0.0)
+    hl = hf
+    if p:
+        hl = hl + jnp.einsum("i,ijk->jk", lam[:p], hg)
+    if q:
+        hl = hl + jnp.einsum("i,ijk->jk", lam[p:p + q], hh)
+    proj = eye - jp @ ja
+    d_r = -jp @ (c * active)
+    rhs = -proj @ (gf + hl @ d_r)
+    mat = proj @ hl @ proj + (eye - proj)
+    mat = 0.5 * (mat + mat.T)
+    w, vecs = jnp.linalg.eigh(mat)
+    floor = 1e-10 * jnp.max(jnp.abs(w)) + jnp.finfo(dtype).tiny
+    z = vecs @ ((vecs.T @ rhs) / jnp.maximum(jnp.abs(w), floor))
+    d = d_r + proj @ z
+    return jnp.where(jnp.all(jnp.isfinite(d)), d, jnp.zeros_like(d))
