@@ -46,6 +46,25 @@ class Result:
     def batched(self) -> bool:
         return len(self.seeds) > 1 or np.ndim(self.best_cost) > 0
 
+    # best solution, objective, violation (strategies with constraints keep best_f /
+    # best_violation in their state; graph problems have no constraints)
+    @property
+    def x(self) -> np.ndarray:
+        return self.best_solution
+
+    @property
+    def f(self) -> np.ndarray:
+        return np.asarray(getattr(self.state, "best_f", self.best_cost))
+
+    @property
+    def violation(self) -> np.ndarray:
+        v = getattr(self.state, "best_violation", None)
+        return np.zeros_like(self.best_cost) if v is None else np.asarray(v)
+
+    @property
+    def feasible(self) -> np.ndarray:
+        return self.violation <= 0
+
 
 def default_strategy(problem: Any) -> Strategy:
     """The EACO strategy for the problem's kind."""
