@@ -199,6 +199,64 @@ def minimize(
     )
 
 
+def stack_params(params: Sequence[Any]) -> Any:
+    """Stack a list of same-structure Params pytrees along a new leading axis."""
+    if not params:
+        raise ValueError("params sequence is empty")
+    structures = {str(jax.tree_util.tree_structure(p)) for p in params}
+    if len(structures) > 1:
+        raise ValueError("every params set must have the same fields (one Params type)")
+    return jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *params)
+
+
+def minimize_batch(
+    problem: Any,
+    strategy: Strategy,
+    params: Sequence[Any],
+    *,
+    seed: int | Sequence[int] = 0,
+    iterations: int | None = None,
+    max_evaluations: int | None = None,
+    chunk_size: int | None = None,
+    progress: bool = False,
+    checkpoint_dir: str | Path | None = None,
+    checkpoint_every: int | None = None,
+    checkpoint_seconds: float | None = None,
+    keep: int = 3,
+    run_info: dict[str, Any] | None = None,
+) -> Result:
+    """Several hyper-parameter sets x seeds as ONE vmapped, jitted run (a sweep on one device).
+
+    Hyper-parameters are traced (they live in ``state.params``), so every (params, seed) pair is
+    one row of a batch of colony states. Row ``r`` of every result array belongs to
+    ``params[r // len(seeds)]`` with seed ``seeds[r % len(seeds)]``; ``result.seeds`` lists the
+    seed of every row. Checkpointing works as in :func:`minimize`.
+    """
+    kind = getattr(problem, "kind", None)
+    if strategy.problem_kind and kind != strategy.problem_kind:
+        raise TypeError(
+            f"{type(strategy).__name__} solves '{strategy.problem_kind}' problems, "
+            f"but {getattr(problem, 'name', problem)!r} is '{kind}'"
+        )
+    seeds = [int(seed)] if np.ndim(seed) == 0 else [int(s) for s in seed]
+    if not seeds:
+        raise ValueError("seed sequence is empty")
+    stacked = stack_params(list(params))
+    rows = len(params) * len(seeds)
+    flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
+    keys = jnp.stack([jax.random.key(s) for s in seeds * len(params)])
+    state = jax.vmap(lambda k, p: strategy.init(k, problem, p))(keys, flat)
+    total = resolve_iterations(strategy, iterations, max_evaluations)
+    chunk = default_chunk(total, chunk_size, checkpoint_every)
+    assert state.iteration.shape == (rows,)
+    return run_resumable(
+        strategy, problem, state, total=total, chunk=chunk, batched=True,
+        seeds=seeds * len(params), progress=progress, checkpoint_dir=checkpoint_dir,
+        checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, keep=keep,
+        run_info=run_info,
+    )
+
+
 def default_chunk(total: int, chunk_size: int | None, checkpoint_every: int | None) -> int:
     """Iterations per compiled call: given, else ~20 chunks per run, at most checkpoint_every."""
     if chunk_size is not None:
