@@ -1,0 +1,197 @@
+"""Parameterised open-loop gait generators (pure JAX): NAO walk engine and an ant oscillator.
+
+**Biped walk engine** (the paper's walk engine, §4): one gait cycle of period ``T`` is two steps.
+Each foot is in stance for the fraction ``d`` (duty ratio) of the cycle, during which it moves
+backward relative to the hip by the step length ``s``; in swing it moves forward again along a
+smooth profile and is lifted by ``foot_lift``. The left foot leads the right by half a cycle, so
+the body speed is ``s / (d T)``. The hip sways sideways toward the stance foot, the torso leans
+by ``torso_pitch``, the arms swing against the legs, and hip-roll / ankle compensations counter
+the body sag. The step direction (relative to the desired direction of the problem) and a turn
+rate give omnidirectional walking. Foot and hip trajectories are turned into joint targets by
+the analytic leg IK of :mod:`eaco_jax.gait.ik`. During the first ``RAMP_TIME`` seconds every
+amplitude grows linearly from the standing pose, so every gait starts from the same keyframe.
+
+**Quadruped oscillator** (brax's ant): hips and ankles follow sinusoids of one frequency, with
+the diagonal leg pairs in anti-phase (trot) and the phases and amplitudes as parameters.
+
+``joint_targets(params, t, spec, heading)`` returns the ``(nu,)`` position targets in the spec's
+joint order; it is written for one parameter vector and one time, vmap it over ants and time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from eaco_jax.gait.ik import leg_ik
+
+RAMP_TIME = 1.0
+"""Seconds over which the gait amplitudes grow from the standing pose."""
+
+
+class GaitParams(NamedTuple):
+    """Biped walk-engine parameters (the order of ``PARAM_NAMES``); units SI, angles in rad."""
+
+    step_length: float  # s: foot excursion relative to the hip during stance [m]
+    hip_height: float  # h: hip joint height above the floor [m]
+    duty_ratio: float  # d: fraction of the cycle each foot is on the ground
+    period: float  # T: gait cycle (two steps) [s]
+    foot_lift: float  # swing-foot clearance [m]
+    step_width: float  # extra lateral foot offset beyond the hip width [m]
+    lateral_sway: float  # amplitude of the sideways hip shift toward the stance foot [m]
+    torso_pitch: float  # forward lean of the torso [rad]
+    arm_swing: float  # shoulder-pitch amplitude, against the legs [rad]
+    hip_roll_comp: float  # extra stance-leg hip roll (mirrored on the right) [rad]
+    ankle_pitch_comp: float  # constant ankle-pitch offset, both feet [rad]
+    ankle_roll_comp: float  # constant ankle-roll offset (mirrored) [rad]
+    direction: float  # step direction relative to the desired heading [rad]
+    turn_rate: float  # yaw rate the feet impose [rad/s]
+
+
+PARAM_NAMES: tuple[str, ...] = GaitParams._fields
+_BOUNDS = {
+    "step_length": (0.0, 0.16),
+    "hip_height": (0.17, 0.24),
+    "duty_ratio": (0.5, 0.8),
+    "period": (0.25, 1.0),
+    "foot_lift": (0.0, 0.05),
+    "step_width": (-0.01, 0.04),
+    "lateral_sway": (0.0, 0.04),
+    "torso_pitch": (-0.1, 0.4),
+    "arm_swing": (0.0, 0.8),
+    "hip_roll_comp": (-0.15, 0.15),
+    "ankle_pitch_comp": (-0.2, 0.2),
+    "ankle_roll_comp": (-0.15, 0.15),
+    "direction": (-0.5, 0.5),
+    "turn_rate": (-0.3, 0.3),
+}
+LOWER = np.array([_BOUNDS[n][0] for n in PARAM_NAMES], np.float32)
+UPPER = np.array([_BOUNDS[n][1] for n in PARAM_NAMES], np.float32)
+
+ANT_PARAM_NAMES: tuple[str, ...] = (
+    "frequency",  # oscillation frequency [Hz]
+    "hip_amplitude",  # [rad]
+    "ankle_amplitude",  # [rad]
+    "ankle_offset",  # added to the standing ankle bend [rad]
+    "ankle_phase",  # phase of the ankles relative to the hips [rad]
+    "pair_phase",  # phase of the second diagonal pair relative to the first [rad]
+    "hip_bias",  # constant hip offset (turning) [rad]
+)
+ANT_LOWER = np.array([0.5, 0.0, 0.0, -0.3, -math.pi, -math.pi, -0.3], np.float32)
+ANT_UPPER = np.array([4.0, 0.5, 0.4, 0.3, math.pi, math.pi, 0.3], np.float32)
+
+
+def bounds(spec) -> tuple[np.ndarray, np.ndarray]:
+    """Parameter bounds ``(lower, upper)`` of the gait generator for this robot."""
+    if spec.gait == "biped":
+        return LOWER, UPPER
+    if spec.gait == "quadruped":
+        return ANT_LOWER, ANT_UPPER
+    raise ValueError(f"no gait generator for gait kind {spec.gait!r} (robot {spec.name})")
+
+
+def param_names(spec) -> tuple[str, ...]:
+    return PARAM_NAMES if spec.gait == "biped" else ANT_PARAM_NAMES
+
+
+def _smoothstep(u: jnp.ndarray) -> jnp.ndarray:
+    return u * u * (3.0 - 2.0 * u)
+
+
+def _foot(phase: jnp.ndarray, d: jnp.ndarray):
+    """Normalised foot excursion xi in [-0.5, 0.5] (+ = forward), lift profile, stance bump."""
+    stance = phase < d
+    u_st = jnp.clip(phase / d, 0.0, 1.0)
+    u_sw = jnp.clip((phase - d) / (1.0 - d), 0.0, 1.0)
+    xi = jnp.where(stance, 0.5 - u_st, -0.5 + _smoothstep(u_sw))
+    lift = jnp.where(stance, 0.0, jnp.sin(jnp.pi * u_sw))
+    bump = jnp.where(stance, jnp.sin(jnp.pi * u_st), 0.0)
+    return xi, lift, bump
+
+
+def _biped_targets(params: jnp.ndarray, t: jnp.ndarray, spec, heading: float) -> jnp.ndarray:
+    p = GaitParams(*[params[i] for i in range(len(PARAM_NAMES))])
+    thigh, tibia = spec.geom("thigh"), spec.geom("tibia")
+    foot_h = spec.geom("foot_height")
+    h0 = spec.geom("stand_hip_height")
+    ramp = jnp.clip(t / RAMP_TIME, 0.0, 1.0)
+    s = p.step_length * ramp
+    h = h0 + (p.hip_height - h0) * ramp
+    phase_l = jnp.mod(t / p.period, 1.0)
+    phase_r = jnp.mod(phase_l + 0.5, 1.0)
+    sway = p.lateral_sway * ramp * jnp.cos(2 * jnp.pi * (phase_l - p.duty_ratio / 2))
+    # the torso starts facing +x; the feet step along the desired heading plus the offset
+    cdir, sdir = jnp.cos(heading + p.direction), jnp.sin(heading + p.direction)
+    out = jnp.asarray(spec.stand_ctrl, jnp.float32)
+    names = spec.joint_names
+    for side, phase, sign in (("L", phase_l, 1.0), ("R", phase_r, -1.0)):
+        xi, lift, bump = _foot(phase, p.duty_ratio)
+        along = s * xi
+        ankle = jnp.stack([
+            along * cdir,
+            sign * p.step_width + along * sdir - sway,
+            -(h - foot_h) + p.foot_lift * ramp * lift,
+        ])
+        yaw = p.turn_rate * p.duty_ratio * p.period * xi * ramp
+        q = leg_ik(ankle, yaw, thigh, tibia)
+        hip_roll = q[1] + sign * p.hip_roll_comp * ramp * bump
+        hip_pitch = q[2] - p.torso_pitch * ramp
+        ankle_pitch = q[4] + p.ankle_pitch_comp * ramp
+        ankle_roll = q[5] + sign * p.ankle_roll_comp * ramp
+        values = (q[0], hip_roll, hip_pitch, q[3], ankle_pitch, ankle_roll)
+        for joint, v in zip(("HipYawPitch", "HipRoll", "HipPitch", "KneePitch", "AnklePitch",
+                             "AnkleRoll"), values, strict=True):
+            out = out.at[names.index(side + joint)].set(v)
+        # the arm swings against the leg on its own side
+        i = names.index(side + "ShoulderPitch")
+        out = out.at[i].add(2.0 * p.arm_swing * ramp * xi)
+    lo = jnp.asarray(spec.joint_lower, jnp.float32)
+    hi = jnp.asarray(spec.joint_upper, jnp.float32)
+    return jnp.clip(out, lo, hi)
+
+
+def _ant_targets(params: jnp.ndarray, t: jnp.ndarray, spec) -> jnp.ndarray:
+    freq, hip_amp, ankle_amp, ankle_off, ankle_phase, pair_phase, hip_bias = (
+        params[i] for i in range(len(ANT_PARAM_NAMES)))
+    ramp = jnp.clip(t / RAMP_TIME, 0.0, 1.0)
+    geo = dict(spec.geometry)
+    out = jnp.asarray(spec.stand_ctrl, jnp.float32)
+    names = spec.joint_names
+    for leg, pair in ((1, 0.0), (2, 1.0), (3, 0.0), (4, 1.0)):
+        phi = 2 * jnp.pi * freq * t + pair * pair_phase
+        x_sign = geo[f"leg{leg}_x_sign"]
+        stand = spec.stand_ctrl[names.index(f"ankle_{leg}")]
+        bend = math.copysign(1.0, stand)
+        hip = hip_bias + x_sign * hip_amp * ramp * jnp.sin(phi)
+        ankle = stand + bend * (ankle_off + ankle_amp * jnp.sin(phi + ankle_phase)) * ramp
+        out = out.at[names.index(f"hip_{leg}")].set(hip)
+        out = out.at[names.index(f"ankle_{leg}")].set(ankle)
+    lo = jnp.asarray(spec.joint_lower, jnp.float32)
+    hi = jnp.asarray(spec.joint_upper, jnp.float32)
+    return jnp.clip(out, lo, hi)
+
+
+def joint_targets(params: jnp.ndarray, t: jnp.ndarray, spec, heading: float = 0.0) -> jnp.ndarray:
+    """Position targets ``(nu,)`` at time ``t`` for one parameter vector (vmap over ants/time)."""
+    if spec.gait == "biped":
+        return _biped_targets(params, t, spec, heading)
+    if spec.gait == "quadruped":
+        return _ant_targets(params, t, spec)
+    raise ValueError(f"no gait generator for gait kind {spec.gait!r} (robot {spec.name})")
+
+
+def control_sequence(
+    params: jnp.ndarray, n_steps: int, spec, heading: float = 0.0
+) -> jnp.ndarray:
+    """Targets ``(n_steps, nu)`` at the control instants ``k * control_dt`` for one gait."""
+    times = jnp.arange(n_steps, dtype=jnp.float32) * spec.control_dt
+    return jax.vmap(lambda t: joint_targets(params, t, spec, heading))(times)
+
+
+def gait_speed(params: jnp.ndarray) -> jnp.ndarray:
+    """Nominal walking speed ``s / (d T)`` of biped parameters (what the engine asks for)."""
+    return params[..., 0] / (params[..., 2] * params[..., 3])
