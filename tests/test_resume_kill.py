@@ -77,8 +77,10 @@ def _kill_and_resume(
             if seen < n:
                 while proc.poll() is None and _writing(ck):
                     time.sleep(0.001)
-    else:
+    else:  # a random moment outside a write: while computing a chunk or between chunks
         time.sleep(rng.uniform(0.0, window))
+        while proc.poll() is None and _writing(ck):
+            time.sleep(0.001)
     during_write = _writing(ck)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
@@ -111,6 +113,7 @@ def _trials(tmp_path: Path, n: int) -> list[str]:
         notes.append(note)
     print("\n".join(notes))
     assert any("mid-write" in n for n in notes)
+    assert any("between writes" in n for n in notes)
     return notes
 
 
