@@ -36,7 +36,7 @@ def choice_weights(tau: Array, log_eta: Array, alpha: Array, beta: Array) -> Arr
 
 
 def heuristic_log_eta(dist: Array) -> Array:
-    """log(eta) = -log(d_ij) (Eq. 1 heuristic), -inf on the diagonal; zero distances count as 0.5."""
+    """log(eta) = -log(d_ij) (Eq. 1), -inf on the diagonal; zero distances count as 0.5."""
     n = dist.shape[0]
     d = jnp.maximum(dist.astype(jnp.float32), 0.5)
     log_eta = -jnp.log(d)

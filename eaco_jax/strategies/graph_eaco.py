@@ -178,7 +178,8 @@ class GraphEACO(Strategy):
         dist = jnp.asarray(problem.dist, jnp.float32)
         n = dist.shape[0]
         if dist.ndim != 2 or dist.shape[1] != n or n < 3:
-            raise ProblemError(f"graph problem needs an (n, n) distance matrix, n >= 3; got {dist.shape}")
+            raise ProblemError(
+                f"graph problem needs an (n, n) distance matrix, n >= 3; got {dist.shape}")
         neighbors = jnp.asarray(problem.neighbors, jnp.int32)
         log_eta = heuristic_log_eta(dist)
         k_chaos, key = jax.random.split(key)

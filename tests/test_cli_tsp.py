@@ -1,0 +1,45 @@
+"""``eaco tsp``: JSON schema, output files, clean errors."""
+
+from __future__ import annotations
+
+import json
+
+from typer.testing import CliRunner
+
+from eaco_jax.cli import app
+from eaco_jax.cli.common import RUNNERS
+
+
+def test_json_schema_and_out_folder(tmp_path):
+    out = tmp_path / "run"
+    res = CliRunner().invoke(app, ["tsp", "burma14", "--ants", "8", "--iterations", "6",
+                                   "--seed", "3", "--json", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.stdout.strip().splitlines()[-1])
+    for key in ("instance", "best_length", "tour", "iterations", "evaluations", "seconds",
+                "seconds_per_iteration", "history_best", "gap_percent", "optimum"):
+        assert key in record, key
+    assert record["instance"] == "burma14" and record["optimum"] == 3323
+    assert isinstance(record["best_length"], int)
+    assert sorted(record["tour"]) == list(range(14))
+    assert record["iterations"] == 6 and record["evaluations"] == 48
+    assert len(record["history_best"]) == 6 and record["history_best"][-1] == record["best_length"]
+    assert abs(record["gap_percent"] - 100 * (record["best_length"] / 3323 - 1)) < 1e-9
+    for name in ("result.json", "history.csv", "convergence.png", "tour.png"):
+        assert (out / name).is_file(), name
+    assert json.loads((out / "result.json").read_text())["best_length"] == record["best_length"]
+    assert len((out / "history.csv").read_text().strip().splitlines()) == 7
+    assert "tsp" in RUNNERS
+
+
+def test_malformed_and_missing_files_are_one_line_errors(tmp_path):
+    bad = tmp_path / "bad.tsp"
+    bad.write_text("NAME: bad\nTYPE: TSP\nDIMENSION: 3\nEDGE_WEIGHT_TYPE: EUC_2D\n"
+                   "NODE_COORD_SECTION\n1 0 0\n2 oops 1\nEOF\n")
+    runner = CliRunner()
+    for target in (str(bad), str(tmp_path / "missing.tsp"), "no_such_instance"):
+        res = runner.invoke(app, ["tsp", target, "--json"])
+        assert res.exit_code == 2, (target, res.output)
+        err = res.stderr.strip()
+        assert err.startswith("error:") and len(err.splitlines()) == 1, err
+        assert "Traceback" not in res.output

@@ -1,0 +1,109 @@
+"""GraphEACO: the colony end to end on small TSPLIB instances."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import eaco_jax as ea
+from eaco_jax import pheromone
+from eaco_jax.problems.tsp import load_tsplib
+from eaco_jax.strategies import GraphEACO
+
+SMALL = GraphEACO(num_ants=8)
+
+
+@pytest.fixture(scope="module")
+def burma():
+    return load_tsplib("burma14")
+
+
+def _is_perm(tours) -> bool:
+    tours = np.asarray(tours)
+    return bool(np.all(np.sort(tours, axis=-1) == np.arange(tours.shape[-1])))
+
+
+def _all_on(params):
+    on = {f.name: jnp.float32(1.0) for f in dataclasses.fields(params) if f.name.startswith("use_")}
+    return params.replace(**on, q0=jnp.float32(0.3))
+
+
+@pytest.mark.parametrize("all_mechanisms", [False, True])
+def test_ask_tell_loop_keeps_permutations_and_bounds(burma, all_mechanisms):
+    params = SMALL.default_params(burma)
+    if all_mechanisms:
+        params = _all_on(params)
+    state = SMALL.init(jax.random.key(0), burma, params)
+    assert float(state.tau_min) <= float(state.tau.min()) <= float(state.tau.max()) <= float(
+        state.tau_max) * (1 + 1e-6)
+    key = jax.random.key(1)
+    for _ in range(12):
+        key, k = jax.random.split(key)
+        tours, state = SMALL.ask(k, state)
+        assert tours.shape == (8, 14) and _is_perm(tours)
+        state = SMALL.tell(state, tours, burma.evaluate(tours))
+        tau = np.asarray(state.tau)
+        assert np.all(tau >= float(state.tau_min) * (1 - 1e-6))
+        assert np.all(tau <= float(state.tau_max) * (1 + 1e-6))
+        np.testing.assert_allclose(tau, tau.T)
+        assert 0.0 <= float(state.diversity) <= 1.0
+    assert _is_perm(state.best_solution[None])
+    assert float(state.best_cost) == float(burma.evaluate(state.best_solution[None])[0])
+
+
+def test_pheromone_greedy_tour_and_eq5_weight(burma):
+    """Eq. 6: with pheromone high on one tour, the greedy-pheromone ant rebuilds it (L_pn);
+    Eq. 5: the recorded adaptive weight is the mean of L_n^-1 / (L_n^-1 + L_pn^-1)."""
+    params = SMALL.default_params(burma).replace(use_adaptive_weight=jnp.float32(1.0))
+    state = SMALL.init(jax.random.key(2), burma, params)
+    marked = np.array([0, 5, 2, 9, 13, 1, 7, 3, 11, 4, 12, 6, 10, 8], np.int32)
+    tau = pheromone.edge_sum(jnp.asarray(marked)[None], jnp.ones(1), 14) * 0.9 + 0.01
+    state = state.replace(tau=tau)
+    tours, state = SMALL.ask(jax.random.key(3), state)
+    l_pn = float(burma.evaluate(jnp.asarray(marked)[None])[0])
+    assert float(state.pheromone_tour_length) == l_pn
+    lengths = burma.evaluate(tours)
+    state = SMALL.tell(state, tours, lengths)
+    want = np.mean((1 / np.asarray(lengths)) / (1 / np.asarray(lengths) + 1 / l_pn))
+    np.testing.assert_allclose(float(state.adaptive_rho), want, rtol=1e-5)
+
+
+def test_finds_burma14_optimum(burma):
+    res = ea.minimize(burma, SMALL, seed=0, iterations=20, chunk_size=10)
+    assert res.best_cost == burma.optimum
+    assert _is_perm(res.best_solution[None])
+    assert np.all(np.diff(res.history["best_cost"]) <= 0)
+
+
+def test_seeds_reproducible_distinct_and_vmapped_equals_looped(burma):
+    strat = GraphEACO(num_ants=8, local_search="none")
+    kw = dict(iterations=8, chunk_size=8)
+    a = ea.minimize(burma, strat, seed=1, **kw)
+    a2 = ea.minimize(burma, strat, seed=1, **kw)
+    b = ea.minimize(burma, strat, seed=2, **kw)
+    np.testing.assert_array_equal(a.history["iter_mean_cost"], a2.history["iter_mean_cost"])
+    np.testing.assert_array_equal(a.best_solution, a2.best_solution)
+    assert not np.array_equal(a.history["iter_mean_cost"], b.history["iter_mean_cost"])
+    both = ea.minimize(burma, strat, seed=[1, 2], **kw)
+    np.testing.assert_array_equal(both.history["iter_mean_cost"][0], a.history["iter_mean_cost"])
+    np.testing.assert_array_equal(both.history["iter_mean_cost"][1], b.history["iter_mean_cost"])
+    np.testing.assert_array_equal(both.best_solution[1], b.best_solution)
+
+
+def test_default_strategy_on_eil51_via_minimize():
+    res = ea.minimize(load_tsplib("eil51"), seed=0, iterations=5, chunk_size=5)
+    assert isinstance(res.strategy, GraphEACO)
+    assert _is_perm(res.best_solution[None]) and res.best_solution.shape == (51,)
+    assert 426 <= float(res.best_cost) < 426 * 1.1
+    assert res.history["diversity"].shape == (5,)
+
+
+def test_bad_static_config_is_a_clear_error():
+    with pytest.raises(ValueError, match="local_search"):
+        GraphEACO(local_search="3opt")
+    with pytest.raises(ValueError, match="crossover"):
+        GraphEACO(crossover="ox")
