@@ -54,11 +54,15 @@ def _leaf_bytes(x: Any) -> tuple[str, bytes]:
 
 
 def tree_hash(tree: Any) -> str:
-    """sha256 of a pytree's structure and the dtype, shape and bytes of every leaf."""
-    h = hashlib.sha256(str(jax.tree_util.tree_structure(tree)).encode())
-    for leaf in jax.tree_util.tree_leaves(tree):
+    """sha256 over every leaf's path, dtype, shape and bytes.
+
+    Only leaf paths enter, not the treedef: a problem's static fields may hold functions
+    whose repr changes from process to process.
+    """
+    h = hashlib.sha256()
+    for path, leaf in jax.tree_util.tree_leaves_with_path(tree):
         head, data = _leaf_bytes(leaf)
-        h.update(head.encode())
+        h.update(f"{jax.tree_util.keystr(path)}:{head};".encode())
         h.update(data)
     return h.hexdigest()[:16]
 
@@ -191,8 +195,12 @@ class Restored:
 
 
 def _manager(directory: Path, keep: int | None, read_only: bool = False):
+    import logging
+
     import orbax.checkpoint as ocp
 
+    if read_only:  # orbax logs two warnings per read-only manager; they are expected here
+        logging.getLogger("absl").setLevel(logging.ERROR)
     options = ocp.CheckpointManagerOptions(
         max_to_keep=keep,
         enable_async_checkpointing=False,

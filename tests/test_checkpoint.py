@@ -217,3 +217,20 @@ def test_eaco_resume_cli_continues_stored_command(tmp_path):
         assert bad.exit_code == 2 and "does not exist" in bad.output
     finally:
         RUNNERS.pop("toy", None)
+
+
+def test_problem_hash_ignores_static_functions_but_not_leaves():
+    from flax import struct
+
+    from eaco_jax.checkpoint import tree_hash
+
+    @struct.dataclass
+    class WithFn:
+        lower: jax.Array
+        fn: object = struct.field(pytree_node=False, default=None)
+
+    a = WithFn(lower=jnp.zeros(3), fn=lambda x: x)
+    b = WithFn(lower=jnp.zeros(3), fn=lambda x: x)  # another object, another repr
+    assert tree_hash(a) == tree_hash(b)
+    assert tree_hash(a) != tree_hash(WithFn(lower=jnp.ones(3)))
+    assert tree_hash(a) != tree_hash(WithFn(lower=jnp.zeros(3, jnp.int32)))
