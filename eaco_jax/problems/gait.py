@@ -99,7 +99,8 @@ class GaitProblem:
         Returns numpy values: ``fitness``, ``speed_mps``, ``distance_m``, ``fell``,
         ``drift_deg``, ``fall_time``; with ``record`` also ``time`` (T+1,), ``joints``
         {joint name: angles (T+1,)} for every actuated joint, ``torso_xyz`` (T+1, 3),
-        ``torso_up`` (T+1, 3) and ``controls`` (T, nu) (the commanded targets).
+        ``torso_up`` (T+1, 3), ``controls`` (T, nu) (the commanded targets) and ``qpos``
+        (T+1, nq) (the full configuration after each control step, for videos).
         """
         p = np.asarray(params, np.float32).reshape(-1)
         if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
@@ -130,6 +131,7 @@ class GaitProblem:
             out["joints"] = {n: qpos[0, :, model.joint(n).qposadr[0]] for n in prob.spec.joint_names}
             out["torso_xyz"] = trace[0, :, :3]
             out["torso_up"] = trace[0, :, 3:]
+            out["qpos"] = qpos[0]
             out["controls"] = np.asarray(jax.vmap(
                 lambda q: control_sequence(q, prob.n_steps, prob.spec, heading))(x))[0]
         return out
