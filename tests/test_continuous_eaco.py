@@ -1,0 +1,89 @@
+"""Continuous EACO: bounds, the public minimize API on a user problem, sweeps, CEC2006."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import eaco_jax
+from eaco_jax.minimize import minimize
+from eaco_jax.problems import ConstrainedProblem, cec2006, float64, rastrigin
+from eaco_jax.strategies import ContinuousEACO, ContinuousParams
+
+
+def user_problem():
+    """min (x0-1)^2 + (x1-2)^2 + x2^2  s.t.  x0 + x1 <= 1,  x2 = x0 - 0.5;  f* = 13/6."""
+    return ConstrainedProblem(
+        lambda x: (x[0] - 1) ** 2 + (x[1] - 2) ** 2 + x[2] ** 2,
+        inequality=lambda x: jnp.stack([x[0] + x[1] - 1.0]),
+        equality=lambda x: jnp.stack([x[2] - x[0] + 0.5]),
+        lower=[-3.0, -3.0, -3.0], upper=[3.0, 3.0, 3.0], name="user", f_star=13 / 6,
+    )
+
+
+def test_user_problem_solved_through_public_api():
+    # optimum: x1 = 1 - x0, x2 = x0 - 0.5, 6 x0 - 1 = 0 -> x0 = 1/6, f = 13/6
+    prob = user_problem()
+    res = eaco_jax.minimize(prob, seed=[0, 1], max_evaluations=3000, chunk_size=150)
+    assert res.feasible.all()
+    np.testing.assert_allclose(res.f, 13 / 6, atol=2e-3)
+    np.testing.assert_allclose(res.x[:, 0] + res.x[:, 1], 1.0, atol=1e-3)
+    assert {"best_f", "best_violation", "evaluations"} <= set(res.history)
+    assert res.history["best_f"].shape[0] == 2
+
+
+def test_ants_stay_in_bounds_with_every_operator_on():
+    prob = rastrigin(4, bound=2.0)
+    strat = ContinuousEACO(num_ants=16, archive_size=10, refine_ants=2)
+    params = ContinuousParams(p_crossover=1.0, p_mutation=1.0, laplace_b=3.0, power_index=0.5,
+                              chaos_rate=1.0, chaos_strength=2.0, chaos_patience=0.0, rho=5.0)
+    state = strat.init(jax.random.key(0), prob, params)
+    key = jax.random.key(1)
+    for _ in range(5):
+        key, k = jax.random.split(key)
+        x, state = strat.ask(k, state)
+        assert bool(jnp.all((x >= prob.lower) & (x <= prob.upper)))
+        state = strat.tell(state, x, prob.evaluate(x))
+
+
+def test_params_are_vmappable():
+    prob = user_problem()
+    strat = ContinuousEACO(num_ants=8, archive_size=8)
+    params = jax.tree.map(lambda a, b: jnp.stack([jnp.asarray(a), jnp.asarray(b)]),
+                          ContinuousParams(q0=0.2), ContinuousParams(q0=0.9))
+    states = jax.vmap(lambda p: strat.init(jax.random.key(0), prob, p))(params)
+    assert states.archive_x.shape == (2, 8, 3)
+    np.testing.assert_allclose(states.params.q0, [0.2, 0.9])
+
+
+@pytest.mark.parametrize("method", ["deb", "penalty"])
+def test_other_constraint_methods_run(method):
+    res = minimize(user_problem(), ContinuousEACO(constraint_method=method), seed=0,
+                   max_evaluations=1000, chunk_size=50)
+    assert np.isfinite(res.f)
+    if method == "deb":
+        assert bool(res.feasible)
+
+
+def test_bad_configuration():
+    with pytest.raises(ValueError, match="constraint method"):
+        ContinuousEACO(constraint_method="nope")
+    with pytest.raises(ValueError, match="refine_ants"):
+        ContinuousEACO(num_ants=2, refine_ants=4)
+
+
+def test_g13_small_run_hits_target():
+    with float64():
+        res = minimize(cec2006("g13"), seed=0, max_evaluations=3000, chunk_size=150)
+    assert bool(res.feasible)
+    assert float(res.f) - 0.053941514041898 <= 1e-4
+    assert 0 < int(res.state.target_evaluations) <= int(res.evaluations)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["g01", "g09", "g10", "g13"])
+def test_cec2006_four_seeds(name):
+    with float64():
+        res = minimize(cec2006(name), seed=[0, 1, 2, 3], max_evaluations=100_000)
+    te = np.asarray(res.state.target_evaluations)
+    assert (te > 0).all() and (te <= 100_000).all()
