@@ -29,6 +29,7 @@ import math
 import random
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
@@ -42,8 +43,9 @@ from eaco_jax.minimize import Result, minimize_batch
 class Setup:
     """What a builder makes of a command's arguments.
 
-    ``metrics(result, row)`` adds columns for one row of a batched result (e.g. feasibility);
-    ``success(row_record)`` marks a row as a success for the summary.
+    ``metrics(result, row)`` adds columns for one row of a batched result (feasibility, gap,
+    ``success`` - counted in the summary). ``context()``, if given, is entered around building
+    and running (e.g. :func:`eaco_jax.problems.float64` for the constrained command).
     """
 
     problem: Any
@@ -53,6 +55,7 @@ class Setup:
     max_evaluations: int | None = None
     chunk_size: int | None = None
     metrics: Callable[[Result, int], dict[str, Any]] | None = None
+    context: Callable[[], AbstractContextManager] | None = None
 
 
 @dataclasses.dataclass
@@ -70,28 +73,38 @@ class Cell:
 
 # --------------------------------------------------------------------------- builders
 def _build_constrained(args: dict[str, Any]) -> Setup:
-    """``constrained`` command: a CEC2006 problem with the continuous EACO colony."""
-    from eaco_jax.problems.cec2006 import cec2006
-    from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+    """``constrained`` command: a CEC2006 problem (or test function), continuous EACO, float64.
+
+    Arguments: ``problem`` (g01..g13, G1..G4, sphere, ...), ``method`` (constraint handling),
+    ``max_evaluations`` or ``iterations``, ``chunk_size`` (default 50 as the command), and any
+    static field of :class:`~eaco_jax.strategies.continuous_eaco.ContinuousEACO`.
+    """
+    from eaco_jax.cli.constrained import load_problem
+    from eaco_jax.problems.constrained import float64
+    from eaco_jax.strategies.continuous_eaco import TARGET_TOLERANCE, ContinuousEACO
 
     args = dict(args)
-    problem = cec2006(str(args.pop("problem", "g01")))
-    budget = {k: args.pop(k) for k in ("iterations", "max_evaluations") if k in args}
-    chunk = args.pop("chunk_size", None)
+    name = str(args.pop("problem", "g01"))
+    if "method" in args:
+        args["constraint_method"] = args.pop("method")
+    budget = {k: int(args.pop(k)) for k in ("iterations", "max_evaluations") if k in args}
+    chunk = int(args.pop("chunk_size", 50))
+    with float64():
+        problem = load_problem(name)
     strategy = ContinuousEACO(**args)
+    f_star = problem.f_star
 
     def metrics(result: Result, row: int) -> dict[str, Any]:
-        state = result.state
-        f = float(np.asarray(state.best_f)[row])
-        v = float(np.asarray(state.best_violation)[row])
-        out = {"best_f": f, "violation": v, "feasible": bool(v <= 0.0)}
-        if problem.f_star is not None:
-            out["error"] = f - float(problem.f_star)
-            out["success"] = bool(v <= 0.0 and f - float(problem.f_star) <= 1e-4)
+        f = float(np.asarray(result.f)[row])
+        v = float(np.asarray(result.violation)[row])
+        out: dict[str, Any] = {"f": f, "violation": v, "feasible": bool(v <= 0.0)}
+        if f_star is not None:
+            out["error"] = f - float(f_star)
+            out["success"] = bool(v <= 0.0 and f - float(f_star) <= TARGET_TOLERANCE)
         return out
 
     return Setup(problem, strategy, strategy.default_params(problem), chunk_size=chunk,
-                 metrics=metrics, **budget)
+                 metrics=metrics, context=float64, **budget)
 
 
 def _build_tsp(args: dict[str, Any]) -> Setup:
@@ -259,20 +272,20 @@ def groups_of(cells: list[Cell]) -> list[list[Cell]]:
 
 
 def with_params(base: Any, overrides: dict[str, Any]) -> Any:
-    """``base`` Params with ``overrides``, every value cast to the base field's dtype."""
+    """``base`` Params with ``overrides``; every field becomes an array of its default's dtype.
+
+    Python-scalar defaults take JAX's default dtype (float32, or float64 inside
+    :func:`eaco_jax.problems.float64`), so all cells stack into one batch.
+    """
     changes = {}
-    for name, value in overrides.items():
-        ref = np.asarray(getattr(base, name))
-        dtype = jnp.float32 if ref.dtype == np.float64 else ref.dtype
-        if not np.isfinite(np.asarray(value, dtype=np.float64)).all():
-            raise ValueError(f"swept value {name}={value!r} is not finite")
-        changes[name] = jnp.asarray(value, dtype=dtype)
-    full = {f.name: getattr(base, f.name) for f in dataclasses.fields(base)}
-    for name, value in full.items():
-        if name not in changes:
-            ref = np.asarray(value)
-            changes[name] = jnp.asarray(value, jnp.float32 if ref.dtype == np.float64
-                                        else ref.dtype)
+    for f in dataclasses.fields(base):
+        value = getattr(base, f.name)
+        dtype = jnp.asarray(value).dtype
+        if f.name in overrides:
+            value = overrides[f.name]
+            if not np.isfinite(np.asarray(value, dtype=np.float64)).all():
+                raise ValueError(f"swept value {f.name}={value!r} is not finite")
+        changes[f.name] = jnp.asarray(value, dtype=dtype)
     return base.replace(**changes)
 
 
@@ -288,6 +301,17 @@ def run_group(
 ) -> dict[str, dict[str, Any]]:
     """Run cells that share static arguments as one vmapped call; cell id -> cell record."""
     setup = builder(dict(cells[0].args))
+    if setup.context is not None:
+        with setup.context():
+            return _run_group(builder(dict(cells[0].args)), cells, seeds, progress,
+                              checkpoint_dir, checkpoint_every)
+    return _run_group(setup, cells, seeds, progress, checkpoint_dir, checkpoint_every)
+
+
+def _run_group(
+    setup: Setup, cells: list[Cell], seeds: list[int], progress: bool,
+    checkpoint_dir: Path | None, checkpoint_every: int | None,
+) -> dict[str, dict[str, Any]]:
     params = [with_params(setup.params, c.params) for c in cells]
     t0 = time.perf_counter()
     result = minimize_batch(
