@@ -61,6 +61,7 @@ def main() -> None:
         params = [with_params(setup.params, dict(zip(("q0", "rho", "p_crossover", "p_mutation"),
                                                      row, strict=True))) for row in TABLE3]
         common = dict(max_evaluations=args.max_evaluations, chunk_size=setup.chunk_size)
+        x64 = bool(jax.config.jax_enable_x64)  # the constrained command runs in float64
 
         t0 = time.perf_counter()
         batch = minimize_batch(setup.problem, setup.strategy, params, seed=seeds, **common)
@@ -99,7 +100,7 @@ def main() -> None:
     record = {
         "problem": "g01", "settings": len(TABLE3), "seeds": len(seeds), "runs": n,
         "max_evaluations": args.max_evaluations, "iterations": int(batch.iterations),
-        "device": str(jax.devices()[0]), "x64": bool(jax.config.jax_enable_x64),
+        "device": str(jax.devices()[0]), "x64": x64,
         "batched_seconds": t_batch, "batched_compile_seconds": batch.compile_seconds,
         "per_cell_seconds": t_cells, "per_cell_compile_seconds": compile_cells,
         "single_run_seconds": t_single,
