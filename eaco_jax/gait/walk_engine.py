@@ -133,7 +133,7 @@ def _biped_targets(params: jnp.ndarray, t: jnp.ndarray, spec, heading: float) ->
         along = s * xi
         ankle = jnp.stack([
             along * cdir,
-            sign * p.step_width + along * sdir - sway,
+            sign * p.step_width * ramp + along * sdir - sway,
             -(h - foot_h) + p.foot_lift * ramp * lift,
         ])
         yaw = p.turn_rate * p.duty_ratio * p.period * xi * ramp

@@ -128,7 +128,8 @@ class GaitProblem:
         if record:
             model = native_model(prob.spec, float(prob.slope_deg), prob.accuracy)
             out["time"] = np.arange(prob.n_steps + 1) * prob.spec.control_dt
-            out["joints"] = {n: qpos[0, :, model.joint(n).qposadr[0]] for n in prob.spec.joint_names}
+            out["joints"] = {n: qpos[0, :, model.joint(n).qposadr[0]]
+                             for n in prob.spec.joint_names}
             out["torso_xyz"] = trace[0, :, :3]
             out["torso_up"] = trace[0, :, 3:]
             out["qpos"] = qpos[0]
