@@ -22,7 +22,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from eaco_jax.minimize import init_states, make_chunk_fn
+from eaco_jax.minimize import init_states, iteration_step
 from eaco_jax.problems import cec2006, float64
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
@@ -36,13 +36,21 @@ def run_problem(name: str, runs: int, budget: int, chunk: int, method: str) -> d
     prob = cec2006(name)
     strategy = ContinuousEACO(constraint_method=method)
     state = init_states(strategy, prob, list(range(runs)), None)
-    fn = make_chunk_fn(strategy, chunk, batched=True)
+
+    def run(problem, s):
+        def body(c, _):
+            c, _ = iteration_step(strategy, problem, c)
+            return c, None
+
+        return jax.lax.scan(body, s, None, length=chunk)[0]
+
+    fn = jax.jit(jax.vmap(run, in_axes=(None, 0)))
     t0 = time.perf_counter()
     compiled = fn.lower(prob, state).compile()
     compile_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     while True:
-        state, _ = compiled(prob, state)
+        state = compiled(prob, state)
         jax.block_until_ready(state)
         te = np.asarray(state.target_evaluations)
         ev = np.asarray(state.evaluations)

@@ -326,8 +326,9 @@ def sqp_direction(problem: ConstrainedProblem, x: Array, active_frac: Array,
     box width (first-order distance |c| / |grad c|), minus inequalities whose least-squares
     multiplier is negative. With ``J`` their Jacobian, ``P`` the projector on its null space and
     ``H`` the Lagrangian Hessian, the step is ``d = d_r + P z`` where ``d_r = -J^+ c`` restores
-    the active constraints and ``z`` solves the reduced Newton system ``P H P z = -P (grad f +
-    H d_r)`` with negative curvature flipped (|eigenvalues|) so it is a descent step.
+    the active constraints (min-norm, via the row-normalised normal equations) and ``z``
+    solves the reduced Newton system ``P H P z = -P (grad f + H d_r)`` with negative curvature
+    flipped (|eigenvalues|) so it is a descent step.
     """
     n = problem.dim
     dtype = x.dtype
@@ -354,22 +355,27 @@ def sqp_direction(problem: ConstrainedProblem, x: Array, active_frac: Array,
     near = near.at[p + q + n:].set(near[p + q + n:] & ~up_closer)
     active0 = is_eq | near
 
-    def multipliers(active: Array) -> tuple[Array, Array, Array]:
-        ja = jac * active[:, None]
-        jp = jnp.linalg.pinv(ja)
-        return ja, jp, -(jp.T @ gf)
+    def normal_matrix(active: Array) -> tuple[Array, Array, Array]:
+        """Row-normalised active Jacobian ``jn``, the row scales, and (jn jn^T + ridge)^-1."""
+        inv = jnp.where(active, 1.0 / jnp.maximum(norms, 1e-300), 0.0)
+        jn = jac * inv[:, None]
+        gram = jn @ jn.T + 1e-12 * jnp.eye(jac.shape[0], dtype=dtype)
+        gram = gram + jnp.diag(jnp.where(active, 0.0, 1.0))
+        return jn, inv, jnp.linalg.inv(gram)
 
-    _, _, lam0 = multipliers(active0)
+    # least-squares multipliers: grad f + J^T lam = 0  ->  lam = -(J J^T)^-1 J grad f
+    jn, inv, ginv = normal_matrix(active0)
+    lam0 = -(ginv @ (jn @ gf)) * inv
     active = active0 & (is_eq | (lam0 >= 0))
-    ja, jp, lam = multipliers(active)
-    lam = jnp.where(active, lam, 0.0)
+    jn, inv, ginv = normal_matrix(active)
+    lam = jnp.where(active, -(ginv @ (jn @ gf)) * inv, 0.0)
     hl = hf
     if p:
         hl = hl + jnp.einsum("i,ijk->jk", lam[:p], hg)
     if q:
         hl = hl + jnp.einsum("i,ijk->jk", lam[p:p + q], hh)
-    proj = eye - jp @ ja
-    d_r = -jp @ (c * active)
+    proj = eye - jn.T @ ginv @ jn
+    d_r = -jn.T @ (ginv @ (c * inv))
     rhs = -proj @ (gf + hl @ d_r)
     mat = proj @ hl @ proj + (eye - proj)
     mat = 0.5 * (mat + mat.T)
