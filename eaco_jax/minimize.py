@@ -73,12 +73,16 @@ def default_strategy(problem: Any) -> Strategy:
         from eaco_jax.strategies.graph_eaco import GraphEACO
 
         return GraphEACO()
+    if kind == "path":
+        from eaco_jax.strategies.path_eaco import PathEACO
+
+        return PathEACO()
     if kind == "continuous":
         from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
         return ContinuousEACO()
     raise TypeError(
-        "minimize() needs a problem with kind 'graph' or 'continuous', got "
+        "minimize() needs a problem with kind 'graph', 'path' or 'continuous', got "
         f"{type(problem).__name__} with kind={kind!r}; "
         "build one with eaco_jax.problems (TSP, ConstrainedProblem, ...)."
     )
@@ -94,17 +98,33 @@ def iteration_step(strategy: Strategy, problem: Any, state: State) -> tuple[Stat
 
 
 def make_chunk_fn(strategy: Strategy, length: int, batched: bool) -> Callable:
-    """A jitted ``(problem, state) -> (state, history)`` running ``length`` iterations."""
+    """A jitted ``(problem, state, active=None) -> (state, history)`` over ``length`` iterations.
 
-    def run(problem, state):
-        def body(s, _):
-            return iteration_step(strategy, problem, s)
+    With ``active`` (a traced int) only the first ``active`` iterations run and the rest pass the
+    state through (``lax.cond``), so a run's last, shorter chunk reuses the same compiled program
+    instead of compiling another; the caller drops the history rows past ``active``.
+    """
 
-        return jax.lax.scan(body, state, None, length=length)
+    def run(problem, state, active):
+        def step(s, i):
+            if active is None:
+                return iteration_step(strategy, problem, s)
+            return jax.lax.cond(
+                i < active,
+                lambda s: iteration_step(strategy, problem, s),
+                lambda s: (s, strategy.stats(s)),
+                s,
+            )
+
+        return jax.lax.scan(step, state, jnp.arange(length))
 
     if batched:
-        run = jax.vmap(run, in_axes=(None, 0))
-    return jax.jit(run)
+        run = jax.vmap(run, in_axes=(None, 0, None))
+
+    def chunk(problem, state, active=None):
+        return run(problem, state, active)
+
+    return jax.jit(chunk)
 
 
 def init_states(
@@ -336,7 +356,7 @@ def run_chunks(
     boundary; it saves when due and always after the last chunk.
     """
     history = [] if history is None else history
-    compiled: dict[int, Any] = {}
+    compiled: Any = None
     compile_seconds = 0.0
     run_seconds = 0.0
     start = done
@@ -348,16 +368,19 @@ def run_chunks(
     try:
         while done < total:
             length = min(chunk, total - done)
-            if length not in compiled:
+            active = jnp.int32(length)
+            if compiled is None:
                 t0 = time.perf_counter()
-                fn = make_chunk_fn(strategy, length, batched)
-                compiled[length] = fn.lower(problem, state).compile()
+                fn = make_chunk_fn(strategy, chunk, batched)
+                compiled = fn.lower(problem, state, active).compile()
                 compile_seconds += time.perf_counter() - t0
             t0 = time.perf_counter()
-            state, hist = compiled[length](problem, state)
+            state, hist = compiled(problem, state, active)
             jax.block_until_ready(state)
             run_seconds += time.perf_counter() - t0
-            history.append(jax.device_get(hist))
+            hist = jax.device_get(hist)
+            time_axis = (slice(None), slice(length)) if batched else (slice(length),)
+            history.append({k: np.asarray(v)[time_axis] for k, v in hist.items()})
             done += length
             if bar is not None:
                 bar.update(length)

@@ -1,0 +1,206 @@
+"""EACO for start-to-goal path planning on a visibility graph (paper §5, Figs. 4-7).
+
+The colony machinery is the graph colony's: random-proportional choice (Eq. 2) with the q0
+rule, logistic-map chaos on the choice weights, elitist reinforcement (Eq. 73-74) restricted by
+the elitist-only deposit condition (Eq. 3-4) and weighted adaptively (Eq. 5), MAX-MIN bounds
+(Eq. 7) and a stagnation-driven evaporation schedule - all from :mod:`eaco_jax.pheromone`.
+What differs is the walk: an ant starts at the start node, may only take visible edges, stops
+at the goal, and is dead (cost +inf) if it gets stuck. The heuristic is goal-directed,
+eta_ij = 1 / (d_ij + |x_j - goal|), so ants prefer short edges that head for the goal.
+
+Genetic operators on paths: *common-node crossover* (the child follows parent A to a node both
+parents visit, then parent B to the goal) with probability ``p_crossover``, and *shortcut*
+(string pulling: from each node jump to the furthest later node of the path that is visible),
+the path analogue of 2-opt, applied to every ant when ``shortcut`` is on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from eaco_jax import chaos, pheromone
+from eaco_jax.construction import choice_weights
+from eaco_jax.problems.path_planning import GOAL, START
+from eaco_jax.strategy import State, Strategy, base_fields, record_best
+
+Array = jax.Array
+
+
+@struct.dataclass
+class PathParams:
+    alpha: Array  # pheromone exponent (Eq. 2)
+    beta: Array  # heuristic exponent (Eq. 2)
+    rho: Array  # evaporation rate
+    q0: Array  # probability of the greedy choice
+    q: Array  # deposit factor Q
+    sigma: Array  # elitist ants (Eq. 74)
+    p_best: Array  # MAX-MIN: probability of rebuilding the best path at the bounds
+    p_crossover: Array  # common-node crossover probability per ant
+    chaos: Array  # strength of the logistic-map perturbation, 0 = off
+    shortcut: Array  # 1 = string-pulling local search on every ant, 0 = off
+    adaptive: Array  # 1 = Eq. 5 adaptive deposit weights, 0 = equal weights
+    stagnation_window: Array  # iterations without improvement before evaporation slows
+    schedule_strength: Array  # how much it slows (0 = fixed rho)
+
+
+@struct.dataclass
+class PathState(State):
+    tau: Array  # (n, n) pheromone
+    log_eta: Array  # (n, n) log heuristic, -inf where blocked
+    dist: Array  # (n, n) edge lengths (+inf blocked)
+    chaos_x: Array  # (m,) logistic-map variables
+
+
+@dataclasses.dataclass(frozen=True)
+class PathEACO(Strategy):
+    """Path-planning colony; ``num_ants`` walks per iteration."""
+
+    num_ants: int = 32
+    problem_kind = "path"
+
+    def default_params(self, problem) -> PathParams:
+        f = jnp.float32
+        return PathParams(
+            alpha=f(1.0), beta=f(3.0), rho=f(0.1), q0=f(0.2), q=f(1.0), sigma=f(4.0),
+            p_best=f(0.05), p_crossover=f(0.3), chaos=f(0.1), shortcut=f(1.0),
+            adaptive=f(1.0), stagnation_window=f(30.0), schedule_strength=f(0.5),
+        )
+
+    def _init(self, key, problem, params) -> PathState:
+        n = problem.n
+        dist = problem.dist.astype(jnp.float32)
+        free = jnp.isfinite(dist)
+        log_eta = jnp.where(free, -jnp.log(dist + problem.to_goal[None, :] + 1e-6), -jnp.inf)
+        tau0 = 1.0 / (n * jnp.sum(problem.to_goal[START]))  # 1/(n * straight-line length)
+        key, k_chaos = jax.random.split(key)
+        template = jnp.full((n,), GOAL, jnp.int32).at[0].set(START)
+        return PathState(
+            **base_fields(key, params, template),
+            tau=jnp.full((n, n), tau0, jnp.float32),
+            log_eta=log_eta.astype(jnp.float32),
+            dist=dist,
+            chaos_x=chaos.logistic_init(k_chaos, (self.num_ants,)),
+        )
+
+    # ------------------------------------------------------------------ construction
+    def _walk(self, key: Array, state: PathState) -> Array:
+        """(m, n) node sequences from START, stopping at GOAL (stuck ants stay put)."""
+        p = state.params
+        m, n = self.num_ants, state.tau.shape[0]
+        w = choice_weights(state.tau, state.log_eta, p.alpha, p.beta)
+        factor = chaos.perturbation(state.chaos_x, p.chaos)[:, None]
+        rows = jnp.arange(m)
+
+        def step(carry, k):
+            cur, visited, done = carry
+            wc = jnp.where(visited, 0.0, w[cur] * factor)
+            total = wc.sum(axis=1)
+            greedy = jnp.argmax(wc, axis=1)
+            u = jax.random.uniform(k, (2, m))
+            sampled = jnp.argmax(jnp.cumsum(wc, axis=1) > (u[0] * total)[:, None], axis=1)
+            choice = jnp.where(u[1] < p.q0, greedy, sampled)
+            nxt = jnp.where(done | (total <= 0), cur, choice).astype(jnp.int32)
+            visited = visited.at[rows, nxt].set(True)
+            return (nxt, visited, done | (nxt == GOAL)), nxt
+
+        start = jnp.full((m,), START, jnp.int32)
+        visited = jnp.zeros((m, n), bool).at[:, START].set(True)
+        init = (start, visited, jnp.zeros((m,), bool))
+        _, seq = jax.lax.scan(step, init, jax.random.split(key, n - 1))
+        return jnp.concatenate([start[:, None], seq.T], axis=1)
+
+    def _ask(self, key, state: PathState):
+        k_walk, k_pair, k_cut, k_cross = jax.random.split(key, 4)
+        paths = self._walk(k_walk, state)
+        p = state.params
+        m = self.num_ants
+        partners = paths[jax.random.randint(k_pair, (m,), 0, m)]
+        keys = jax.random.split(k_cut, m)
+        children = jax.vmap(common_node_crossover)(keys, paths, partners)
+        cross = jax.random.uniform(k_cross, (m,)) < p.p_crossover
+        paths = jnp.where(cross[:, None], children, paths)
+        cut = jax.vmap(shortcut, in_axes=(0, None))(paths, state.dist)
+        paths = jnp.where(p.shortcut > 0, cut, paths)
+        return paths, state.replace(chaos_x=chaos.logistic_step(state.chaos_x))
+
+    # ------------------------------------------------------------------ pheromone
+    def _tell(self, state: PathState, paths, lengths) -> PathState:
+        p = state.params
+        n = state.tau.shape[0]
+        previous_best = state.best_cost
+        state = record_best(state, paths, lengths)
+        ok = jnp.isfinite(lengths)
+        safe = jnp.where(ok, lengths, 1.0)
+        mask = pheromone.elitist_deposit_mask(jnp.where(ok, lengths, jnp.inf), previous_best) & ok
+        adaptive = pheromone.adaptive_weight(safe, jnp.where(jnp.isfinite(state.best_cost),
+                                                             state.best_cost, 1.0))
+        weights = mask * jnp.where(p.adaptive > 0, 2.0 * adaptive, 1.0)
+        rho = pheromone.evaporation_schedule(p.rho, state.stagnation, p.stagnation_window,
+                                             p.schedule_strength)
+        has_best = jnp.isfinite(state.best_cost)
+        best_len = jnp.where(has_best, state.best_cost, 1.0)
+        tau = pheromone.elitist_update(state.tau, paths, safe, weights, state.best_solution,
+                                       best_len, rho, p.q, jnp.where(has_best, p.sigma, 0.0))
+        tau_max, tau_min = pheromone.mmas_bounds(best_len, n, p.p_best, p.q * (1.0 + p.sigma))
+        tau = jnp.where(has_best, pheromone.clamp(tau, tau_min, tau_max), tau)
+        return state.replace(tau=tau, diversity=path_diversity(paths, n))
+
+
+def common_node_crossover(key: Array, a: Array, b: Array) -> Array:
+    """Follow ``a`` up to a random node that ``b`` also visits, then ``b`` to the goal.
+
+    Nodes are compared up to each parent's first arrival at the goal; with no common inner node
+    the child is ``a``.
+    """
+    n = a.shape[0]
+    idx = jnp.arange(n)
+    in_b = jnp.any(a[:, None] == b[None, :], axis=1)
+    inner = (a != START) & (a != GOAL) & in_b
+    pick = jax.random.categorical(key, jnp.where(inner, 0.0, -jnp.inf))
+    any_common = jnp.any(inner)
+    pos_a = jnp.where(any_common, pick, n)
+    pos_b = jnp.argmax(b == a[jnp.minimum(pick, n - 1)])
+    src = idx - pos_a + pos_b
+    child = jnp.where(idx < pos_a, a, jnp.where(src < n, b[jnp.clip(src, 0, n - 1)], GOAL))
+    return child.astype(jnp.int32)
+
+
+def shortcut(path: Array, dist: Array) -> Array:
+    """String pulling: from each kept node jump to the furthest later node visible from it.
+
+    Never lengthens a path (triangle inequality); a dead path (blocked edge, no goal) is returned
+    as is.
+    """
+    n = path.shape[0]
+    idx = jnp.arange(n)
+
+    def step(pos, _):
+        node = path[pos]
+        visible = jnp.isfinite(dist[node, path]) & (idx > pos)
+        nxt = jnp.where(path[pos] == GOAL, pos, jnp.max(jnp.where(visible, idx, pos + 1)))
+        nxt = jnp.minimum(nxt, n - 1)
+        return nxt, path[nxt]
+
+    _, rest = jax.lax.scan(step, jnp.int32(0), None, length=n - 1)
+    out = jnp.concatenate([path[:1], rest])
+    valid = (path[-1] == GOAL) & jnp.all(
+        (path[:-1] == path[1:]) | jnp.isfinite(dist[path[:-1], path[1:]]))
+    return jnp.where(valid, out, path).astype(jnp.int32)
+
+
+def path_diversity(paths: Array, n: int) -> Array:
+    """Mean pairwise Jaccard distance of the ants' undirected edge sets, in [0, 1]."""
+    a, b = paths[:, :-1], paths[:, 1:]
+    m = paths.shape[0]
+    e = jnp.zeros((m, n, n), jnp.float32).at[jnp.arange(m)[:, None], a, b].max(
+        jnp.where(a != b, 1.0, 0.0))
+    e = jnp.maximum(e, jnp.swapaxes(e, 1, 2)).reshape(m, -1)
+    inter = e @ e.T
+    sizes = e.sum(axis=1)
+    union = sizes[:, None] + sizes[None, :] - inter
+    dist = jnp.where(union > 0, 1.0 - inter / jnp.maximum(union, 1.0), 0.0)
+    return (dist.sum() / jnp.maximum(m * (m - 1), 1)).astype(jnp.float32)
