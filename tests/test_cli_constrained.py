@@ -1,0 +1,43 @@
+"""``eaco constrained``: JSON record, output folder, clean errors."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from eaco_jax.cli import app
+from eaco_jax.cli.common import RUNNERS
+from eaco_jax.cli.constrained import run_constrained
+
+
+def test_run_constrained_record_and_outputs(tmp_path):
+    rec = run_constrained("g11", seed=1, max_evaluations=2000, json=True, out=str(tmp_path))
+    for key in ("problem", "x", "f", "violation", "feasible", "evaluations",
+                "evaluations_to_target", "f_star"):
+        assert key in rec
+    assert rec["problem"] == "g11" and rec["f_star"] == pytest.approx(0.7499)
+    assert rec["feasible"] and rec["f"] - rec["f_star"] <= 1e-4
+    assert 0 < rec["evaluations_to_target"] <= rec["evaluations"]
+    saved = json.loads((tmp_path / "result.json").read_text())
+    assert saved["f"] == pytest.approx(rec["f"])
+    assert (tmp_path / "convergence.png").stat().st_size > 0
+    assert RUNNERS["constrained"] is run_constrained
+
+
+def test_cli_errors_are_one_line():
+    runner = CliRunner()
+    res = runner.invoke(app, ["constrained", "g99", "--json"])
+    assert res.exit_code == 2
+    assert "unknown CEC2006 problem" in res.output
+    res = runner.invoke(app, ["constrained", "g11", "--method", "lagrange", "--json"])
+    assert res.exit_code == 2
+    assert "unknown constraint method" in res.output
+
+
+def test_cli_json_line():
+    runner = CliRunner()
+    res = runner.invoke(app, ["constrained", "g11", "--json", "--max-evaluations", "600",
+                              "--method", "deb"])
+    assert res.exit_code == 0, res.output
+    rec = json.loads(res.output.strip().splitlines()[-1])
+    assert rec["problem"] == "g11" and rec["method"] == "deb"
