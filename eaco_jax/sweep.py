@@ -13,8 +13,9 @@ interrupted sweep started again skips finished cells. The whole table lands in
 (``OUT/summary.json``) and a plot (``OUT/summary.png``).
 
 The spec (a dict, usually from YAML, see :mod:`eaco_jax.cli.sweep` for the file format) names
-a ``command`` whose *builder* turns the command's arguments into a :class:`Setup`; builders for
-``constrained`` and ``tsp`` live here, a custom one is named as ``builder: "module:function"``.
+a ``command`` whose *builder* turns the command's arguments into a :class:`Setup` (with the
+command's defaults); builders for ``constrained``, ``tsp`` and ``gait`` live here, a custom one
+is named as ``builder: "module:function"``.
 """
 
 from __future__ import annotations
@@ -87,8 +88,10 @@ def _build_constrained(args: dict[str, Any]) -> Setup:
     name = str(args.pop("problem", "g01"))
     if "method" in args:
         args["constraint_method"] = args.pop("method")
-    budget = {k: int(args.pop(k)) for k in ("iterations", "max_evaluations") if k in args}
+    budget = _pop_budget(args)
     chunk = int(args.pop("chunk_size", 50))
+    if "ants" in args:
+        args["num_ants"] = int(args.pop("ants"))
     with float64():
         problem = load_problem(name)
     strategy = ContinuousEACO(**args)
@@ -107,32 +110,77 @@ def _build_constrained(args: dict[str, Any]) -> Setup:
                  metrics=metrics, context=float64, **budget)
 
 
+def _pop_budget(args: dict[str, Any]) -> dict[str, int]:
+    return {k: int(args.pop(k)) for k in ("iterations", "max_evaluations") if k in args}
+
+
 def _build_tsp(args: dict[str, Any]) -> Setup:
-    """``tsp`` command: a TSPLIB instance with the graph EACO colony."""
+    """``tsp`` command: a TSPLIB instance with the graph EACO colony.
+
+    Arguments as ``eaco tsp``: ``instance``, ``ants``, ``iterations``, ``local_search`` (bool),
+    plus any static field of :class:`~eaco_jax.strategies.graph_eaco.GraphEACO`.
+    """
+    from eaco_jax.cli.tsp import DEFAULT_ITERATIONS
     from eaco_jax.problems.tsp import load_tsplib
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     args = dict(args)
     problem = load_tsplib(str(args.pop("instance", args.pop("problem", "eil51"))))
-    budget = {k: args.pop(k) for k in ("iterations", "max_evaluations") if k in args}
+    budget = _pop_budget(args) or {"iterations": DEFAULT_ITERATIONS}
     chunk = args.pop("chunk_size", None)
+    if "ants" in args:
+        args["num_ants"] = int(args.pop("ants"))
+    if isinstance(args.get("local_search"), bool):
+        args["local_search"] = "2opt" if args["local_search"] else "none"
     strategy = GraphEACO(**args)
-    optimum = getattr(problem, "optimum", None)
+    optimum = problem.optimum
 
     def metrics(result: Result, row: int) -> dict[str, Any]:
         if optimum is None:
             return {}
         cost = float(np.asarray(result.best_cost)[row])
-        return {"gap_percent": 100.0 * (cost - float(optimum)) / float(optimum),
+        return {"gap_percent": 100.0 * (cost / float(optimum) - 1.0),
                 "success": bool(cost <= float(optimum))}
 
     return Setup(problem, strategy, strategy.default_params(problem), chunk_size=chunk,
                  metrics=metrics, **budget)
 
 
+def _build_gait(args: dict[str, Any]) -> Setup:
+    """``gait`` command: walk-engine parameters of a robot with continuous EACO (no gradients).
+
+    Arguments as ``eaco gait``: ``robot``, ``backend``, ``ants``, ``iterations``, ``horizon``,
+    ``direction``, ``slope``. The cost is minus the distance walked (``fitness`` column).
+    """
+    from eaco_jax.cli.gait import DEFAULT_ANTS, DEFAULT_HORIZON, DEFAULT_ITERATIONS
+    from eaco_jax.problems.gait import make_gait_problem
+    from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+
+    args = dict(args)
+    gait = make_gait_problem(
+        str(args.pop("robot", "nao")), backend=str(args.pop("backend", "auto")),
+        horizon=float(args.pop("horizon", DEFAULT_HORIZON)),
+        direction_deg=float(args.pop("direction", 0.0)),
+        slope_deg=float(args.pop("slope", 0.0)),
+    )
+    budget = _pop_budget(args) or {"iterations": DEFAULT_ITERATIONS}
+    ants = int(args.pop("ants", args.pop("num_ants", DEFAULT_ANTS)))
+    if args:
+        raise ValueError(f"gait sweeps do not take {sorted(args)}")
+    strategy = ContinuousEACO(num_ants=ants, archive_size=max(2, (3 * ants) // 2),
+                              refine_ants=0, repair_steps=0)
+    problem = gait.as_constrained()
+
+    def metrics(result: Result, row: int) -> dict[str, Any]:
+        return {"fitness": -float(np.asarray(result.best_cost)[row])}
+
+    return Setup(problem, strategy, strategy.default_params(problem), metrics=metrics, **budget)
+
+
 BUILDERS: dict[str, Callable[[dict[str, Any]], Setup]] = {
     "constrained": _build_constrained,
     "tsp": _build_tsp,
+    "gait": _build_gait,
 }
 
 
