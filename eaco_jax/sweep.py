@@ -452,8 +452,8 @@ def run_sweep(
                 if every is not None:
                     tag = hashlib.sha256("".join(c.id for c in group).encode()).hexdigest()[:10]
                     ck = out / "checkpoints" / f"group-{tag}"
-                for record in run_group(builder, group, seeds, checkpoint_dir=ck,
-                                        checkpoint_every=every).values():
+                for record in run_group(builder, group, seeds, progress=progress,
+                                        checkpoint_dir=ck, checkpoint_every=every).values():
                     write_cell(out, record)
                 if bar is not None:
                     bar.update(len(group))
