@@ -375,7 +375,7 @@ class GraphEACO(Strategy):
             adaptive_rho=jnp.mean(weight_n).astype(jnp.float32),
             since_improvement=since,
             restarts=state.restarts + restart.astype(jnp.int32),
-            diversity=jnp.asarray(edge_diversity(solutions), jnp.float32),
+            diversity=jnp.clip(edge_diversity(solutions), 0.0, 1.0).astype(jnp.float32),
         )
 
     def stats(self, state: GraphState) -> dict[str, Array]:
