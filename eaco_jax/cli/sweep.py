@@ -62,7 +62,7 @@ def register(app: typer.Typer) -> None:
     @app.command()
     @guarded
     def sweep(
-        spec_file: Annotated[Path, typer.Argument(help="sweep YAML (format: eaco sweep --help)")],
+        spec_file: Annotated[Path, typer.Argument(help="sweep YAML file")],
         backend: Annotated[str, typer.Option(help="local (vmapped groups) or ray")] = "local",
         out: Annotated[Path | None, typer.Option(help="output folder")] = None,
         address: Annotated[str | None, typer.Option(help="Ray cluster address")] = None,
@@ -70,7 +70,14 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="print one JSON record")] = False,
         quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
     ) -> None:
-        """Run a hyper-parameter sweep; an interrupted sweep resumes where it stopped."""
+        """Run a hyper-parameter sweep; an interrupted sweep resumes where it stopped.
+
+        YAML keys: command (constrained|tsp|gait) or builder ("module:function"), args (fixed
+        command arguments), seeds (int or list), cells (list of settings) and/or grid (lists,
+        crossed), or random (n, seed, space), checkpoint_every. Swept Params fields run as
+        one vmapped call. Full format: the docstring of eaco_jax/cli/sweep.py; example:
+        experiments/sweeps/table3_g01.yaml.
+        """
         from eaco_jax.sweep import run_sweep
 
         spec = load_spec(spec_file)
