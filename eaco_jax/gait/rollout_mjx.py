@@ -16,14 +16,19 @@ import jax.numpy as jnp
 from mujoco import mjx
 
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
-from eaco_jax.gait.walk_engine import joint_targets
+from eaco_jax.gait.walk_engine import joint_targets, stand_pose
 from eaco_jax.robots import RobotSpec
 
 
 @functools.lru_cache(maxsize=16)
 def mjx_model(spec: RobotSpec, slope_deg: float, accuracy: str) -> mjx.Model:
-    """The MJX model for ``(robot, slope, accuracy)``, cached (same MjModel as native)."""
-    return mjx.put_model(native_model(spec, slope_deg, accuracy))
+    """The MJX model for ``(robot, slope, accuracy)``, cached (same MjModel as native).
+
+    Built with concrete arrays even when first called inside a jit trace: the cache outlives
+    the trace, so a traced model would leak into the next one.
+    """
+    with jax.ensure_compile_time_eval():
+        return mjx.put_model(native_model(spec, slope_deg, accuracy))
 
 
 def root_trace(qpos: jax.Array) -> jax.Array:
@@ -51,14 +56,15 @@ def mjx_trace(
     k = substeps(spec, model)
     mm = mjx_model(spec, float(slope_deg), accuracy)
     qpos0 = jnp.asarray(initial_state(spec, model, slope_deg)[1 : 1 + model.nq], jnp.float32)
-    ctrl0 = jnp.asarray(spec.stand_ctrl, jnp.float32)
+    ctrl0 = jnp.asarray(stand_pose(spec, slope_deg), jnp.float32)
 
     def one(p: jax.Array):
         data = mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0)
         data = mjx.forward(mm, data)
 
         def control_step(d, i):
-            u = joint_targets(p, i.astype(jnp.float32) * spec.control_dt, spec, heading)
+            u = joint_targets(p, i.astype(jnp.float32) * spec.control_dt, spec, heading,
+                              slope_deg)
             d = d.replace(ctrl=u)
             d = jax.lax.fori_loop(0, k, lambda _, dd: mjx.step(mm, dd), d)
             return d, (root_trace(d.qpos), d.qpos if record else None)
