@@ -49,8 +49,13 @@ def main() -> None:
     ap.add_argument("--verify-backends", default="native,mjx")
     ap.add_argument("--around", default=None, help="JSON with a 'vector' to search around")
     ap.add_argument("--radius", type=float, default=0.15)
+    ap.add_argument("--verify-only", action="store_true",
+                    help="no optimisation: verify the gait of --around and merge into --out")
     ap.add_argument("--out", default="experiments/results/nao_best_gait.json")
     args = ap.parse_args()
+    if args.verify_only:
+        verify_only(args)
+        return
 
     problem = make_gait_problem(args.robot, backend=args.backend, horizon=args.horizon,
                                 direction_deg=args.direction, slope_deg=args.slope)
@@ -105,6 +110,35 @@ def main() -> None:
     }
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=2))
+    print(f"wrote {args.out}")
+
+
+def verify_only(args: argparse.Namespace) -> None:
+    """Re-simulate a stored gait on the requested backends; merge the results into --out."""
+    if not args.around:
+        raise SystemExit("--verify-only needs --around PARAMS.json")
+    raw = json.loads(Path(args.around).read_text())
+    slope = float(raw.get("slope_deg", args.slope))
+    direction = float(raw.get("direction_deg", args.direction))
+    problem = make_gait_problem(raw.get("robot", args.robot), backend="native",
+                                horizon=args.verify_horizon, direction_deg=direction,
+                                slope_deg=slope)
+    vec = np.asarray(raw["vector"], np.float32)
+    verified = dict(raw.get("verified", {}))
+    print(f"{'backend':8s} {'horizon':>7s} {'speed':>7s} {'dist':>7s} {'fell':>5s} {'drift':>6s}"
+          f" {'seconds':>8s}")
+    for backend in [b for b in args.verify_backends.split(",") if b]:
+        t0 = time.time()
+        sim = problem.simulate(vec, record=False, backend=backend)
+        verified[backend] = {k: sim[k] for k in KEYS}
+        verified[backend]["seconds_incl_compile"] = time.time() - t0
+        print(f"{backend:8s} {args.verify_horizon:7.1f} {sim['speed_mps']:7.3f} "
+              f"{sim['distance_m']:7.3f} {sim['fell']!s:>5s} {sim['drift_deg']:6.1f} "
+              f"{time.time() - t0:8.0f}", flush=True)
+    raw["verified"] = verified
+    raw["verify_horizon"] = args.verify_horizon
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(raw, indent=2))
     print(f"wrote {args.out}")
 
 

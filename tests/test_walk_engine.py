@@ -70,3 +70,14 @@ def test_ant_oscillator():
     assert q.shape == (20, 8)
     np.testing.assert_allclose(q[0], np.asarray(ant.stand_ctrl), atol=1e-6)
     assert np.all(q >= np.asarray(ant.joint_lower) - 1e-6)
+
+
+def test_slope_keeps_soles_parallel_to_the_floor(nao):
+    p = jnp.asarray((we.LOWER + we.UPPER) / 2)
+    flat = we.joint_targets(p, jnp.float32(2.0), nao, 0.0, 0.0)
+    up = we.joint_targets(p, jnp.float32(2.0), nao, 0.0, 5.0)
+    i = nao.joint_names.index("LAnklePitch")
+    pose = we.stand_pose(nao, 5.0)
+    assert pose[i] == pytest.approx(nao.stand_ctrl[i] - np.radians(5.0))
+    assert not np.allclose(flat, up)
+    np.testing.assert_allclose(we.stand_pose(nao, 0.0), nao.stand_ctrl)

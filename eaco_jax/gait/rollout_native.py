@@ -15,7 +15,6 @@ call it; batching over seeds is flattened into the ant axis.
 from __future__ import annotations
 
 import functools
-import math
 import os
 
 import jax
@@ -24,6 +23,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
+from eaco_jax.gait.walk_engine import stand_pose
 from eaco_jax.robots import RobotSpec, load_model, stand_qpos
 
 STATE_BYTES_PER_CALL = 64 * 2**20
@@ -52,12 +52,14 @@ def substeps(spec: RobotSpec, model: mujoco.MjModel) -> int:
 
 
 def initial_state(spec: RobotSpec, model: mujoco.MjModel, slope_deg: float) -> np.ndarray:
-    """Full physics state of the standing keyframe (raised so no sole starts in a slope)."""
+    """Full physics state of the standing keyframe, soles parallel to the (inclined) floor."""
     data = mujoco.MjData(model)
     qpos = np.array(stand_qpos(spec, model))
-    qpos[2] += 0.1 * abs(math.tan(math.radians(slope_deg)))
+    pose = stand_pose(spec, slope_deg)
+    for name, value in zip(spec.joint_names, pose, strict=True):
+        qpos[model.joint(name).qposadr[0]] = value
     data.qpos[:] = qpos
-    data.ctrl[:] = spec.stand_ctrl
+    data.ctrl[:] = pose
     mujoco.mj_forward(model, data)
     spec_full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state = np.empty(mujoco.mj_stateSize(model, spec_full))

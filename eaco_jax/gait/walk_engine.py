@@ -10,6 +10,7 @@ the body sag. The step direction (relative to the desired direction of the probl
 rate give omnidirectional walking. Foot and hip trajectories are turned into joint targets by
 the analytic leg IK of :mod:`eaco_jax.gait.ik`. During the first ``RAMP_TIME`` seconds every
 amplitude grows linearly from the standing pose, so every gait starts from the same keyframe.
+On a slope the feet follow the inclined floor and the soles stay parallel to it.
 
 **Quadruped oscillator** (brax's ant): hips and ankles follow sinusoids of one frequency, with
 the diagonal leg pairs in anti-phase (trot) and the phases and amplitudes as parameters.
@@ -113,12 +114,16 @@ def _foot(phase: jnp.ndarray, d: jnp.ndarray):
     return xi, lift, bump
 
 
-def _biped_targets(params: jnp.ndarray, t: jnp.ndarray, spec, heading: float) -> jnp.ndarray:
+def _biped_targets(
+    params: jnp.ndarray, t: jnp.ndarray, spec, heading: float, slope_deg: float
+) -> jnp.ndarray:
     p = GaitParams(*[params[i] for i in range(len(PARAM_NAMES))])
     thigh, tibia = spec.geom("thigh"), spec.geom("tibia")
     foot_h = spec.geom("foot_height")
     h0 = spec.geom("stand_hip_height")
     ramp = jnp.clip(t / RAMP_TIME, 0.0, 1.0)
+    slope = math.radians(slope_deg)
+    tan_slope = math.tan(slope)
     s = p.step_length * ramp
     h = h0 + (p.hip_height - h0) * ramp
     phase_l = jnp.mod(t / p.period, 1.0)
@@ -131,16 +136,18 @@ def _biped_targets(params: jnp.ndarray, t: jnp.ndarray, spec, heading: float) ->
     for side, phase, sign in (("L", phase_l, 1.0), ("R", phase_r, -1.0)):
         xi, lift, bump = _foot(phase, p.duty_ratio)
         along = s * xi
+        ankle_x = along * cdir
         ankle = jnp.stack([
-            along * cdir,
+            ankle_x,
             sign * p.step_width * ramp + along * sdir - sway,
-            -(h - foot_h) + p.foot_lift * ramp * lift,
+            # on a slope (rising along +x) a foot ahead of the hip lands higher
+            -(h - foot_h) + p.foot_lift * ramp * lift + ankle_x * tan_slope,
         ])
         yaw = p.turn_rate * p.duty_ratio * p.period * xi * ramp
         q = leg_ik(ankle, yaw, thigh, tibia)
         hip_roll = q[1] + sign * p.hip_roll_comp * ramp * bump
         hip_pitch = q[2] - p.torso_pitch * ramp
-        ankle_pitch = q[4] + p.ankle_pitch_comp * ramp
+        ankle_pitch = q[4] + p.ankle_pitch_comp * ramp - slope  # sole parallel to the floor
         ankle_roll = q[5] + sign * p.ankle_roll_comp * ramp
         values = (q[0], hip_roll, hip_pitch, q[3], ankle_pitch, ankle_roll)
         for joint, v in zip(("HipYawPitch", "HipRoll", "HipPitch", "KneePitch", "AnklePitch",
@@ -175,21 +182,36 @@ def _ant_targets(params: jnp.ndarray, t: jnp.ndarray, spec) -> jnp.ndarray:
     return jnp.clip(out, lo, hi)
 
 
-def joint_targets(params: jnp.ndarray, t: jnp.ndarray, spec, heading: float = 0.0) -> jnp.ndarray:
-    """Position targets ``(nu,)`` at time ``t`` for one parameter vector (vmap over ants/time)."""
+def joint_targets(
+    params: jnp.ndarray, t: jnp.ndarray, spec, heading: float = 0.0, slope_deg: float = 0.0
+) -> jnp.ndarray:
+    """Position targets ``(nu,)`` at time ``t`` for one parameter vector (vmap over ants/time).
+
+    ``heading`` (rad) is the desired walking direction relative to the torso's initial +x;
+    ``slope_deg`` the floor slope (rising along +x), which the biped's feet follow.
+    """
     if spec.gait == "biped":
-        return _biped_targets(params, t, spec, heading)
+        return _biped_targets(params, t, spec, heading, slope_deg)
     if spec.gait == "quadruped":
         return _ant_targets(params, t, spec)
     raise ValueError(f"no gait generator for gait kind {spec.gait!r} (robot {spec.name})")
 
 
 def control_sequence(
-    params: jnp.ndarray, n_steps: int, spec, heading: float = 0.0
+    params: jnp.ndarray, n_steps: int, spec, heading: float = 0.0, slope_deg: float = 0.0
 ) -> jnp.ndarray:
     """Targets ``(n_steps, nu)`` at the control instants ``k * control_dt`` for one gait."""
     times = jnp.arange(n_steps, dtype=jnp.float32) * spec.control_dt
-    return jax.vmap(lambda t: joint_targets(params, t, spec, heading))(times)
+    return jax.vmap(lambda t: joint_targets(params, t, spec, heading, slope_deg))(times)
+
+
+def stand_pose(spec, slope_deg: float = 0.0) -> np.ndarray:
+    """The pose every gait starts from: the standing keyframe, soles parallel to the floor."""
+    pose = np.asarray(spec.stand_ctrl, np.float64).copy()
+    if spec.gait == "biped":
+        for side in "LR":
+            pose[spec.joint_names.index(side + "AnklePitch")] -= math.radians(slope_deg)
+    return pose
 
 
 def gait_speed(params: jnp.ndarray) -> jnp.ndarray:

@@ -67,8 +67,8 @@ class GaitProblem:
         if self.backend == "mjx":
             return mjx_trace(solutions, self.n_steps, self.spec, self.slope_deg, heading,
                              self.accuracy)
-        controls = jax.vmap(
-            lambda p: control_sequence(p, self.n_steps, self.spec, heading))(solutions)
+        controls = jax.vmap(lambda p: control_sequence(
+            p, self.n_steps, self.spec, heading, self.slope_deg))(solutions)
         return native_trace_callback(controls, self.spec, self.slope_deg, self.accuracy)
 
     def summarize(self, trace: jax.Array) -> GaitSummary:
@@ -116,7 +116,8 @@ class GaitProblem:
             trace, qpos = (np.asarray(a) for a in run(x))
         else:
             controls = np.asarray(jax.jit(jax.vmap(
-                lambda q: control_sequence(q, prob.n_steps, prob.spec, heading)))(x))
+                lambda q: control_sequence(q, prob.n_steps, prob.spec, heading,
+                                           prob.slope_deg)))(x))
             trace, qpos = native_trace(controls, prob.spec, prob.slope_deg, prob.accuracy,
                                        record_qpos=True)
         metrics = gait_fitness(prob.summarize(jnp.asarray(trace)), prob.direction_deg)
@@ -134,7 +135,8 @@ class GaitProblem:
             out["torso_up"] = trace[0, :, 3:]
             out["qpos"] = qpos[0]
             out["controls"] = np.asarray(jax.vmap(
-                lambda q: control_sequence(q, prob.n_steps, prob.spec, heading))(x))[0]
+                lambda q: control_sequence(q, prob.n_steps, prob.spec, heading,
+                                           prob.slope_deg))(x))[0]
         return out
 
     def as_constrained(self):
