@@ -27,7 +27,14 @@ Our reading of the paper for real vectors (PAPER_NOTES.md section 2):
 Evaluation accounting: every point whose objective/constraints are computed costs one
 evaluation: the driver's colony (``num_ants``), the initial archive (``archive_size``), each
 repair step (1 per step per ant) and the refinement's derivatives (``dim + 1`` per iteration,
-what a finite-difference gradient would cost; autodiff Hessians are charged the same).
+what a finite-difference gradient would cost; autodiff Hessians are charged the same), and a
+chaotic restart (``archive_size``). ``minimize(max_evaluations=N)`` runs ``N // num_ants``
+iterations, so these extra evaluations come on top of N; ``state.evaluations`` has the true
+count and ``state.target_evaluations`` the count at which f - f* <= 1e-4 was first met.
+
+Precision: the colony works in the problem's dtype (float64 when the problem was built inside
+:func:`eaco_jax.problems.float64`); ``best_cost`` (float32, the driver's field) is the best
+feasible objective, +inf until a feasible point is found; ``best_f`` keeps full precision.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from eaco_jax import constraints as ch
+from eaco_jax.chaos import logistic_step
 from eaco_jax.problem import Evaluation
 from eaco_jax.problems.constrained import ConstrainedProblem
 from eaco_jax.real_ops import laplace_crossover_sample, power_mutation_sample
@@ -209,8 +217,7 @@ class ContinuousEACO(Strategy):
         x = jnp.where(do_mut & coord, mutated, x)
 
         # chaos perturbation around the best while stagnating (logistic map per ant/coordinate)
-        z = 4.0 * state.chaos * (1.0 - state.chaos)
-        z = jnp.clip(jnp.where(jnp.abs(z - 0.75) < 1e-6, 0.7501, z), 1e-4, 1.0 - 1e-4)
+        z = logistic_step(state.chaos)
         stagnating = state.stagnation >= p.chaos_patience
         ck2 = jax.random.split(keys[9], 2)
         do_chaos = stagnating & (jax.random.uniform(ck2[0], (m, 1), dtype) < p.chaos_rate)
@@ -235,28 +242,27 @@ class ContinuousEACO(Strategy):
         return x, state.replace(chaos=z, evaluations=state.evaluations + extra)
 
     def _chaotic_restart(self, state: ContinuousState) -> ContinuousState:
-        """After ``restart_patience`` iterations without progress, re-seed the archive.
+        """After ``restart_patience`` iterations without progress, re-seed the whole archive.
 
-        The best archive member stays (elitism); the other ``k - 1`` are placed by the
-        archive's logistic-map sequences over the whole box and evaluated here (charged).
+        The ``k`` members are placed by the archive's logistic-map sequences over the whole box
+        and evaluated here (charged). The best-so-far stays in ``best_solution`` / ``best_f``
+        (elitism of the result); the archive forgets it so the colony can leave its basin
+        (keeping it there let it pull the colony back into the same local optimum on g13).
         """
         p, problem = state.params, state.problem
         lo, hi = problem.lower, problem.upper
-        z = 4.0 * state.archive_chaos * (1.0 - state.archive_chaos)
-        z = jnp.clip(jnp.where(jnp.abs(z - 0.75) < 1e-6, 0.7501, z), 1e-4, 1.0 - 1e-4)
+        z = logistic_step(state.archive_chaos)
         restart = state.stagnation >= p.restart_patience
 
         def reseed(s: ContinuousState) -> ContinuousState:
-            fresh = lo + z[1:] * (hi - lo)
-            ev = s.problem.evaluate(fresh)
-            x = jnp.concatenate([s.archive_x[:1], fresh])
-            f = jnp.concatenate([s.archive_f[:1], jnp.where(jnp.isnan(ev.f), jnp.inf, ev.f)])
-            v = jnp.concatenate([s.archive_v[:1],
-                                 jnp.where(jnp.isnan(ev.violation), jnp.inf, ev.violation)])
+            x = lo + z * (hi - lo)
+            ev = s.problem.evaluate(x)
+            f = jnp.where(jnp.isnan(ev.f), jnp.inf, ev.f)
+            v = jnp.where(jnp.isnan(ev.violation), jnp.inf, ev.violation)
             order = self._order(f, v, p, s.epsilon)
             return s.replace(archive_x=x[order], archive_f=f[order], archive_v=v[order],
                              stagnation=jnp.zeros_like(s.stagnation),
-                             evaluations=s.evaluations + (self.archive_size - 1))
+                             evaluations=s.evaluations + self.archive_size)
 
         state = jax.lax.cond(restart, reseed, lambda s: s, state)
         return state.replace(archive_chaos=z)
@@ -279,6 +285,11 @@ class ContinuousEACO(Strategy):
         # best so far by Deb's rules (feasible first), whatever the archive order is
         i = ch.rank_order(f, v, "deb")[0]
         improved = ch.better(f[i], v[i], state.best_f, state.best_violation, "deb")
+        # stagnation counts iterations without *significant* progress: rounding-level gains
+        # (a colony re-converging onto the same optimum) must not postpone a restart
+        gain = state.best_f - f[i]
+        significant = gain > 1e-9 * (1.0 + jnp.abs(state.best_f))
+        progress = improved & ((state.best_violation > 0) | significant)
         best_f = jnp.where(improved, f[i], state.best_f)
         best_v = jnp.where(improved, v[i], state.best_violation)
         evaluations = state.evaluations + solutions.shape[0]
@@ -300,7 +311,7 @@ class ContinuousEACO(Strategy):
             best_violation=best_v,
             best_solution=jnp.where(improved, solutions[i].astype(ax.dtype), state.best_solution),
             best_cost=jnp.where(best_v > 0, jnp.inf, best_f).astype(jnp.float32),
-            stagnation=jnp.where(improved, 0, state.stagnation + 1),
+            stagnation=jnp.where(progress, 0, state.stagnation + 1),
             diversity=diversity.astype(jnp.float32),
             target_evaluations=target_evals,
             target_iteration=target_iter,
