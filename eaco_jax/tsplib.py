@@ -82,9 +82,7 @@ def _parse_header(raw: str) -> tuple[str, str] | None:
     return key, value.strip()
 
 
-def _read_coords(
-    path: Path, lines: list[tuple[int, str]], n: int, section: str
-) -> np.ndarray:
+def _read_coords(path: Path, lines: list[tuple[int, str]], n: int, section: str) -> np.ndarray:
     """Parse ``id x y`` rows of a coordinate section into an ``(n, 2)`` array ordered by id."""
     if not lines:
         raise _fail(path, f"{section} is empty (DIMENSION is {n})")
@@ -117,9 +115,7 @@ def _read_coords(
     return coords
 
 
-def _read_explicit(
-    path: Path, lines: list[tuple[int, str]], n: int, fmt: str
-) -> np.ndarray:
+def _read_explicit(path: Path, lines: list[tuple[int, str]], n: int, fmt: str) -> np.ndarray:
     """Parse an ``EDGE_WEIGHT_SECTION`` of the given format into a symmetric int64 matrix."""
     values: list[float] = []
     for lineno, raw in lines:
@@ -139,8 +135,9 @@ def _read_explicit(
     expected = int(mask.sum())
     if len(values) != expected:
         raise _fail(
-            path, f"EDGE_WEIGHT_SECTION ({fmt}) has {len(values)} numbers, expected {expected}"
-            f" for DIMENSION {n}"
+            path,
+            f"EDGE_WEIGHT_SECTION ({fmt}) has {len(values)} numbers, expected {expected}"
+            f" for DIMENSION {n}",
         )
     w = np.asarray(values)
     if not np.all(np.isfinite(w)) or np.any(w < 0) or np.any(w != np.round(w)):
@@ -221,21 +218,21 @@ def read_tsplib(path: str | Path) -> TsplibInstance:
         fmt = header.get("EDGE_WEIGHT_FORMAT", "").upper()
         if fmt not in EXPLICIT_FORMATS:
             raise _fail(
-                path, f"EDGE_WEIGHT_FORMAT {fmt or '(missing)'} is not supported; use one of"
-                f" {', '.join(EXPLICIT_FORMATS)}"
+                path,
+                f"EDGE_WEIGHT_FORMAT {fmt or '(missing)'} is not supported; use one of"
+                f" {', '.join(EXPLICIT_FORMATS)}",
             )
         if "EDGE_WEIGHT_SECTION" not in sections:
             raise _fail(path, "missing EDGE_WEIGHT_SECTION (needed for EDGE_WEIGHT_TYPE EXPLICIT)")
         weights = _read_explicit(path, sections["EDGE_WEIGHT_SECTION"], n, fmt)
         coords = None
         if sections.get("DISPLAY_DATA_SECTION"):
-            coords = _read_coords(
-                path, sections["DISPLAY_DATA_SECTION"], n, "DISPLAY_DATA_SECTION"
-            )
+            coords = _read_coords(path, sections["DISPLAY_DATA_SECTION"], n, "DISPLAY_DATA_SECTION")
         return TsplibInstance(name, comment, n, ewt, coords, weights, str(path))
     raise _fail(
-        path, f"EDGE_WEIGHT_TYPE {ewt or '(missing)'} is not supported; use one of"
-        f" {', '.join(COORD_TYPES)}, EXPLICIT"
+        path,
+        f"EDGE_WEIGHT_TYPE {ewt or '(missing)'} is not supported; use one of"
+        f" {', '.join(COORD_TYPES)}, EXPLICIT",
     )
 
 

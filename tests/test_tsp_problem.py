@@ -40,8 +40,10 @@ def test_load_by_path_and_unknown_name(tmp_path):
     with pytest.raises(ProblemError, match="bundled: .*eil51"):
         load_tsplib("eil5")
     custom = tmp_path / "tri.tsp"
-    custom.write_text("NAME : tri\nDIMENSION : 3\nEDGE_WEIGHT_TYPE : EUC_2D\n"
-                      "NODE_COORD_SECTION\n1 0 0\n2 3 0\n3 0 4\nEOF\n")
+    custom.write_text(
+        "NAME : tri\nDIMENSION : 3\nEDGE_WEIGHT_TYPE : EUC_2D\n"
+        "NODE_COORD_SECTION\n1 0 0\n2 3 0\n3 0 4\nEOF\n"
+    )
     q = load_tsplib(custom)
     assert q.optimum is None and float(q.evaluate(jnp.array([[0, 1, 2]]))[0]) == 12
     assert set(bundled_instances()) >= {"burma14", "ulysses22", "att48", "a280", "pcb442"}

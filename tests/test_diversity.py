@@ -1,0 +1,55 @@
+"""Edge diversity of a colony: identical / reversed tours score 0, unrelated tours near 1."""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pytest
+
+from eaco_jax.diversity import edge_diversity, shared_edges
+
+
+def test_identical_and_reversed_and_rotated_tours_have_zero_diversity():
+    rng = np.random.default_rng(0)
+    t = rng.permutation(30).astype(np.int32)
+    colony = np.stack([t, t[::-1], np.roll(t, 7), np.roll(t[::-1], 3)])
+    assert float(edge_diversity(colony)) == 0.0
+    assert np.all(np.asarray(shared_edges(colony)) == 30)
+
+
+def test_unrelated_tours_are_diverse_and_bounds():
+    rng = np.random.default_rng(1)
+    colony = np.stack([rng.permutation(200) for _ in range(6)]).astype(np.int32)
+    d = float(edge_diversity(colony))
+    assert 0.95 < d <= 1.0  # random tours share ~2 edges of 200
+    # two tours with no common edge at all: distance exactly 1
+    n = 7
+    a = np.arange(n)
+    b = (2 * np.arange(n)) % n  # steps of 2 on a 7-cycle: no edge of a
+    assert float(edge_diversity(np.stack([a, b]))) == 1.0
+    assert float(edge_diversity(a[None])) == 0.0
+
+
+def test_matches_brute_force_and_jits():
+    rng = np.random.default_rng(2)
+    colony = np.stack([rng.permutation(12) for _ in range(5)]).astype(np.int32)
+    colony[1] = colony[0]
+    colony[2, 3:6] = colony[2, 3:6][::-1]
+
+    def edges(t):
+        return {frozenset((int(t[i]), int(t[(i + 1) % len(t)]))) for i in range(len(t))}
+
+    pairs = [
+        1 - len(edges(colony[i]) & edges(colony[j])) / 12
+        for i in range(5)
+        for j in range(5)
+        if i != j
+    ]
+    assert float(edge_diversity(colony)) == pytest.approx(np.mean(pairs), abs=1e-6)
+    batched = jax.vmap(edge_diversity)(np.stack([colony, colony[::-1]]))
+    np.testing.assert_allclose(batched, [np.mean(pairs)] * 2, atol=1e-6)
+
+
+def test_bad_shape():
+    with pytest.raises(ValueError, match="shape"):
+        edge_diversity(np.arange(5))
