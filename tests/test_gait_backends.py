@@ -70,3 +70,16 @@ def test_problem_errors():
         p.evaluate(jnp.zeros((3, 5)))
     ev = jax.jit(p.evaluate)(jnp.asarray([_gait(step_length=0.05)] * 2, jnp.float32))
     assert ev.f.shape == (2,) and np.all(np.isfinite(ev.f)) and np.all(ev.violation == 0)
+
+
+def test_colony_runs_native_rollouts_inside_scan():
+    """The native backend's pure_callback works inside minimize's jitted lax.scan."""
+    import eaco_jax as ea
+    from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+
+    p = make_gait_problem("nao", backend="native", horizon=0.2)
+    strategy = ContinuousEACO(num_ants=3, archive_size=3, refine_ants=0, repair_steps=0)
+    res = ea.minimize(p.as_constrained(), strategy, seed=0, iterations=2)
+    assert np.isfinite(res.best_cost) and res.best_cost <= 0.0
+    assert np.all(res.best_solution >= np.asarray(p.lower) - 1e-6)
+    assert int(res.evaluations) == 3 + 2 * 3
