@@ -14,6 +14,11 @@ One iteration (``ask`` then ``tell``):
    (Eq. 73-74) with the elitist-only deposit condition (Eq. 3-4) and the adaptive weight (Eq. 5);
    MAX-MIN bounds (Eq. 7); restart of the trails on long stagnation; population diversity.
 
+Tours are built on the problem's nearest-neighbour candidate lists (``candidate_lists=True``,
+as ACOTSP does: Eq. 2 over the allowed candidates, the best allowed node when all candidates
+are tabu; the pheromone-greedy ant of Eq. 6 likewise); ``candidate_lists=False`` applies Eq. 2
+over all nodes at O(n) more work per step.
+
 Every mechanism has a 0/1 switch in :class:`GraphParams` (traced, so ablations and sweeps vmap).
 Operators that cost compute (crossover, mutation, local search) are static fields: "none"
 removes them from the compiled program.
