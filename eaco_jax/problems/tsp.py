@@ -79,6 +79,7 @@ class TSP:
     Attributes:
       dist: ``(n, n)`` float32 distances (exact integers for TSPLIB metrics), zero diagonal.
       neighbors: ``(n, k)`` int32, each city's ``k`` nearest other cities, closest first.
+      coords: ``(n, 2)`` city coordinates when the instance has them (for plots), else None.
       name: instance name for results.
       optimum: known optimal tour length, or None.
       kind: always ``"graph"``.
@@ -86,6 +87,7 @@ class TSP:
 
     dist: jax.Array
     neighbors: jax.Array
+    coords: jax.Array | None = None
     name: str = struct.field(pytree_node=False, default="custom")
     optimum: float | None = struct.field(pytree_node=False, default=None)
     kind: str = struct.field(pytree_node=False, default="graph")
@@ -113,6 +115,7 @@ class TSP:
         name: str = "custom",
         neighbors: int = DEFAULT_NEIGHBORS,
         optimum: float | None = None,
+        coords: np.ndarray | None = None,
     ) -> TSP:
         """A TSP from a square, finite, non-negative, symmetric matrix with zero diagonal."""
         d = _check_matrix(d)
@@ -120,6 +123,7 @@ class TSP:
         return cls(
             dist=jnp.asarray(d, jnp.float32),
             neighbors=jnp.asarray(nbr),
+            coords=None if coords is None else jnp.asarray(coords, jnp.float32),
             name=name,
             optimum=optimum,
         )
@@ -139,7 +143,8 @@ class TSP:
                 f"metric {metric!r} is not supported; use one of {', '.join(COORD_TYPES)}"
             )
         return cls.from_distance_matrix(
-            coord_distances(coords, metric), name=name, neighbors=neighbors, optimum=optimum
+            coord_distances(coords, metric), name=name, neighbors=neighbors, optimum=optimum,
+            coords=np.asarray(coords),
         )
 
 
@@ -164,7 +169,8 @@ def load_tsplib(name_or_path: str | Path, neighbors: int = DEFAULT_NEIGHBORS) ->
     optima = bundled_optima()
     optimum = optima.get(name, optima.get(path.stem))
     return TSP.from_distance_matrix(
-        distance_matrix(inst), name=name, neighbors=neighbors, optimum=optimum
+        distance_matrix(inst), name=name, neighbors=neighbors, optimum=optimum,
+        coords=inst.coords if inst.coords is not None and len(inst.coords) else None,
     )
 
 
