@@ -80,6 +80,8 @@ def default_strategy(problem: Any) -> Strategy:
     if kind == "continuous":
         from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
+        if not getattr(problem, "differentiable", True):  # simulations: no gradient steps
+            return ContinuousEACO(refine_ants=0, repair_steps=0)
         return ContinuousEACO()
     raise TypeError(
         "minimize() needs a problem with kind 'graph', 'path' or 'continuous', got "

@@ -88,3 +88,22 @@ def test_cec2006_four_seeds(name):
         res = minimize(cec2006(name), seed=[0, 1, 2, 3], max_evaluations=100_000)
     te = np.asarray(res.state.target_evaluations)
     assert (te > 0).all() and (te <= 100_000).all()
+
+
+def test_non_differentiable_problem_gets_gradient_free_colony():
+    """A simulator-like objective (pure_callback, no derivatives) runs through minimize."""
+    import numpy as np_
+
+    def host(x):
+        return np_.sum(np_.asarray(x) ** 2, axis=-1).astype(np_.float32)
+
+    def objective(x):
+        return jax.pure_callback(host, jax.ShapeDtypeStruct((), jnp.float32), x,
+                                 vmap_method="broadcast_all")
+
+    prob = ConstrainedProblem(objective, lower=[-1.0, -1.0], upper=[1.0, 1.0], name="sim",
+                              differentiable=False)
+    res = eaco_jax.minimize(prob, seed=0, iterations=30)
+    assert float(res.f) < 0.05
+    with pytest.raises(ValueError, match="refine_ants=0"):
+        ContinuousEACO().init(jax.random.key(0), prob)

@@ -58,7 +58,8 @@ class ConstrainedProblem:
     shapes (abstractly, with ``jax.eval_shape``) and raises one :class:`ProblemError`.
 
     It is a pytree: ``lower`` and ``upper`` are leaves; functions, name and ``f_star`` (the
-    known optimum, if any) are static.
+    known optimum, if any) are static. ``differentiable=False`` marks functions JAX cannot
+    differentiate (a simulator behind a callback): strategies then take no gradient steps.
     """
 
     kind = "continuous"
@@ -73,8 +74,10 @@ class ConstrainedProblem:
         upper: Any,
         name: str = "constrained",
         f_star: float | None = None,
+        differentiable: bool = True,
     ) -> None:
         fields = _validated(objective, inequality, equality, lower, upper, name, f_star)
+        fields["differentiable"] = bool(differentiable)
         for key, value in fields.items():
             object.__setattr__(self, key, value)
 
@@ -84,14 +87,14 @@ class ConstrainedProblem:
     # ------------------------------------------------------------------ pytree
     def tree_flatten(self) -> tuple[tuple[Array, Array], tuple]:
         aux = (self.objective, self.inequality, self.equality, self.name, self.f_star,
-               self.num_inequality, self.num_equality)
+               self.num_inequality, self.num_equality, self.differentiable)
         return (self.lower, self.upper), aux
 
     @classmethod
     def tree_unflatten(cls, aux: tuple, leaves: tuple) -> ConstrainedProblem:
         obj = object.__new__(cls)
         names = ("objective", "inequality", "equality", "name", "f_star", "num_inequality",
-                 "num_equality")
+                 "num_equality", "differentiable")
         for key, value in zip(names, aux, strict=True):
             object.__setattr__(obj, key, value)
         object.__setattr__(obj, "lower", leaves[0])

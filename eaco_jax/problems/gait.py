@@ -43,6 +43,7 @@ class GaitProblem:
     name: str = struct.field(pytree_node=False, default="gait")
 
     kind = "continuous"
+    differentiable = False  # a simulation: no gradient repair / refinement steps
 
     @property
     def dim(self) -> int:
@@ -144,8 +145,8 @@ class GaitProblem:
         (objective ``-fitness`` of one vector, no constraints), for strategies that require one.
 
         Its batched ``evaluate`` is a vmap of the one-gait objective; on the native backend the
-        callback still receives the whole colony at once. The simulation is not
-        differentiable: use ``ContinuousEACO(refine_ants=0)``.
+        callback still receives the whole colony at once. It is marked
+        ``differentiable=False``, so ``minimize`` picks a colony without gradient steps.
         """
         from eaco_jax.problems.constrained import ConstrainedProblem
 
@@ -155,7 +156,8 @@ class GaitProblem:
             return -jnp.where(jnp.isfinite(fit), fit, 0.0).astype(self.dtype)
 
         return ConstrainedProblem(objective, lower=np.asarray(self.lower),
-                                  upper=np.asarray(self.upper), name=self.name)
+                                  upper=np.asarray(self.upper), name=self.name,
+                                  differentiable=False)
 
     def params_dict(self, params: Any) -> dict[str, float]:
         """``{parameter name: value}`` of one parameter vector."""

@@ -127,17 +127,27 @@ class ContinuousEACO(Strategy):
     def _order(self, f: Array, v: Array, params: ContinuousParams, eps: Array) -> Array:
         return ch.rank_order(f, v, self.constraint_method, eps, params.penalty)
 
-    @staticmethod
-    def _check_problem(problem: Any) -> None:
+    def _check_problem(self, problem: Any) -> ConstrainedProblem:
+        """The problem as a ConstrainedProblem (others convert through ``as_constrained()``)."""
         if not isinstance(problem, ConstrainedProblem):
-            raise TypeError(
-                "ContinuousEACO needs an eaco_jax.problems.ConstrainedProblem, got "
-                f"{type(problem).__name__}"
+            if not hasattr(problem, "as_constrained"):
+                raise TypeError(
+                    "ContinuousEACO needs an eaco_jax.problems.ConstrainedProblem (or a problem "
+                    f"with as_constrained()), got {type(problem).__name__}"
+                )
+            problem = problem.as_constrained()
+        constrained = problem.num_inequality + problem.num_equality > 0
+        if not getattr(problem, "differentiable", True) and (
+            self.refine_ants or (self.repair_steps and constrained)
+        ):
+            raise ValueError(
+                f"{problem.name!r} is not differentiable (a simulation); use "
+                "ContinuousEACO(refine_ants=0, repair_steps=0)"
             )
+        return problem
 
     def init(self, key: Array, problem: Any, params: ContinuousParams | None = None) -> State:
-        self._check_problem(problem)
-        return super().init(key, problem, params)
+        return super().init(key, self._check_problem(problem), params)
 
     # ----------------------------------------------------------------- init
     def _init(self, key: Array, problem: ConstrainedProblem,
