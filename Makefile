@@ -19,7 +19,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check eaco_jax robots experiments tests
-	$(BIN)/python -m pytest -m "not slow" -n 2 --durations=15
+	$(BIN)/python -m pytest -m "not slow" -n 2 --durations=15 --nbmake tests notebooks
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -n 2
