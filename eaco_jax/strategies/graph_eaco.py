@@ -61,7 +61,7 @@ from eaco_jax.strategy import State, Strategy, base_fields, record_best
 
 Array = jax.Array
 
-LOCAL_SEARCHES = ("2opt", "2opt+oropt", "none")
+LOCAL_SEARCHES = ("2opt", "none")
 CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
 
@@ -300,13 +300,6 @@ class GraphEACO(Strategy):
             return tours
         from eaco_jax import local_search
 
-        if self.local_search == "2opt+oropt":
-            if not hasattr(local_search, "two_opt_or_opt"):
-                raise ValueError("local_search='2opt+oropt' needs eaco_jax.local_search."
-                                 "two_opt_or_opt, which this version lacks; use '2opt'")
-            return local_search.two_opt_or_opt(
-                tours, state.dist, state.neighbors, self.max_ls_moves
-            )
         return local_search.two_opt(tours, state.dist, state.neighbors, self.max_ls_moves)
 
     # ------------------------------------------------------------------ tell
