@@ -26,12 +26,8 @@ SCRIPT = textwrap.dedent(
     one = ea.minimize(problem, RandomSearch(), seed=2, iterations=6)
     two = ea.minimize(sharded, RandomSearch(), seed=2, iterations=6)
     np.testing.assert_allclose(one.history["best_cost"], two.history["best_cost"], rtol=1e-6)
-    try:
-        jax.jit(sharded.evaluate)(x[:3])
-    except ValueError as err:
-        assert "multiple of 2" in str(err), err
-    else:
-        raise AssertionError("uneven split accepted")
+    uneven = jax.jit(sharded.evaluate)(x[:3])  # 3 ants over 2 devices: padded by XLA
+    np.testing.assert_allclose(uneven.f, a.f[:3], rtol=1e-6)
     print("SHARDING-OK")
     """
 )
