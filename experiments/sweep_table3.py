@@ -29,21 +29,14 @@ os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
+from table3_g01 import SETTINGS  # noqa: E402  (same folder: the paper's Table 3 rows)
 
 from eaco_jax.cli.common import write_json  # noqa: E402
 from eaco_jax.minimize import minimize, minimize_batch  # noqa: E402
 from eaco_jax.sweep import _build_constrained, with_params  # noqa: E402
 
-#: (q0, rho, p_crossover, p_mutation), the rows of the paper's Table 3
-TABLE3 = [
-    (0.2, 0.1, 0.2, 0.2),
-    (0.4, 0.2, 0.3, 0.3),
-    (0.6, 0.3, 0.4, 0.4),
-    (0.8, 0.3, 0.6, 0.5),
-    (0.9, 0.4, 0.8, 0.8),
-    (0.8, 0.3, 0.5, 0.6),
-]
 RESULTS = Path(__file__).parent / "results" / "sweep_table3.json"
+TABLE3 = SETTINGS  # (q0, rho, p_crossover, p_mutation), the rows of the paper's Table 3
 
 
 def main() -> None:

@@ -165,6 +165,12 @@ def fitness_history(history: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
+def _setting(problem: Any) -> dict[str, Any]:
+    """The simulated setting shared by the gait and gait-eval records."""
+    return {"robot": problem.spec.name, "backend": problem.backend, "horizon": problem.horizon,
+            "direction": problem.direction_deg, "slope": problem.slope_deg}
+
+
 def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
     return {k: sim[k] for k in METRIC_KEYS}
 
@@ -231,11 +237,7 @@ def run_gait(
     seconds = time.perf_counter() - t0
     history = fitness_history(result.history)
     record: dict[str, Any] = {
-        "robot": problem.spec.name,
-        "backend": problem.backend,
-        "horizon": problem.horizon,
-        "direction": problem.direction_deg,
-        "slope": problem.slope_deg,
+        **_setting(problem),
         "ants": int(ants),
         "seed": int(seed),
         "iterations": int(result.iterations),
@@ -297,11 +299,7 @@ def run_gait_eval(
     t0 = time.perf_counter()
     sim = problem.simulate(vec, record=out is not None)
     record: dict[str, Any] = {
-        "robot": problem.spec.name,
-        "backend": problem.backend,
-        "horizon": problem.horizon,
-        "direction": problem.direction_deg,
-        "slope": problem.slope_deg,
+        **_setting(problem),
         **_metrics(sim),
         "params": problem.params_dict(vec),
         "vector": vec.tolist(),
