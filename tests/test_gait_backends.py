@@ -83,3 +83,16 @@ def test_colony_runs_native_rollouts_inside_scan():
     assert np.isfinite(res.best_cost) and res.best_cost <= 0.0
     assert np.all(res.best_solution >= np.asarray(p.lower) - 1e-6)
     assert int(res.evaluations) == 3 + 2 * 3
+
+
+def test_backends_agree_short_horizon():
+    """CI version of test_backends_agree: one walking gait, 0.2 s, same tolerances."""
+    x = jnp.asarray([_gait(step_length=0.06, foot_lift=0.02, period=0.4, lateral_sway=0.01,
+                           arm_swing=0.3)], jnp.float32)
+    traces = {}
+    for backend in ("native", "mjx"):
+        p = make_gait_problem("nao", backend=backend, horizon=0.2)
+        traces[backend] = np.asarray(jax.jit(p.trace)(x))
+    assert traces["mjx"].shape == traces["native"].shape == (1, 11, 6)
+    np.testing.assert_allclose(traces["mjx"][..., :3], traces["native"][..., :3], atol=1e-3)
+    assert np.all(np.isfinite(traces["mjx"]))
