@@ -158,6 +158,20 @@ def resolve_iterations(
     return int(iterations)
 
 
+def checked_seeds(strategy: Strategy, problem: Any, seed: int | Sequence[int]) -> list[int]:
+    """The seeds as a list, after checking that ``strategy`` solves ``problem``'s kind."""
+    kind = getattr(problem, "kind", None)
+    if strategy.problem_kind and kind != strategy.problem_kind:
+        raise TypeError(
+            f"{type(strategy).__name__} solves '{strategy.problem_kind}' problems, "
+            f"but {getattr(problem, 'name', problem)!r} is '{kind}'"
+        )
+    seeds = [int(seed)] if np.ndim(seed) == 0 else [int(s) for s in seed]
+    if not seeds:
+        raise ValueError("seed sequence is empty")
+    return seeds
+
+
 def minimize(
     problem: Any,
     strategy: Strategy | None = None,
@@ -199,15 +213,7 @@ def minimize(
         ``{"command": name, "args": {...}}`` from it).
     """
     strategy = default_strategy(problem) if strategy is None else strategy
-    kind = getattr(problem, "kind", None)
-    if strategy.problem_kind and kind != strategy.problem_kind:
-        raise TypeError(
-            f"{type(strategy).__name__} solves '{strategy.problem_kind}' problems, "
-            f"but {getattr(problem, 'name', problem)!r} is '{kind}'"
-        )
-    seeds = [int(seed)] if np.ndim(seed) == 0 else [int(s) for s in seed]
-    if not seeds:
-        raise ValueError("seed sequence is empty")
+    seeds = checked_seeds(strategy, problem, seed)
     total = resolve_iterations(strategy, iterations, max_evaluations)
     chunk = default_chunk(total, chunk_size, checkpoint_every)
     batched = len(seeds) > 1
@@ -254,15 +260,7 @@ def minimize_batch(
     ``params[r // len(seeds)]`` with seed ``seeds[r % len(seeds)]``; ``result.seeds`` lists the
     seed of every row. Checkpointing works as in :func:`minimize`.
     """
-    kind = getattr(problem, "kind", None)
-    if strategy.problem_kind and kind != strategy.problem_kind:
-        raise TypeError(
-            f"{type(strategy).__name__} solves '{strategy.problem_kind}' problems, "
-            f"but {getattr(problem, 'name', problem)!r} is '{kind}'"
-        )
-    seeds = [int(seed)] if np.ndim(seed) == 0 else [int(s) for s in seed]
-    if not seeds:
-        raise ValueError("seed sequence is empty")
+    seeds = checked_seeds(strategy, problem, seed)
     stacked = stack_params(list(params))
     rows = len(params) * len(seeds)
     flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
