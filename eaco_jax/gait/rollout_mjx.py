@@ -1,7 +1,7 @@
 """Batched gait rollouts on MJX: ``vmap`` over ants of a ``lax.scan`` over control steps.
 
-Each control step computes the walk engine's position targets for the ant's parameters at
-``t = k * control_dt`` and runs ``substeps`` ``mjx.step`` calls holding them. Only the torso
+Each control step sets the ant's precomputed position targets (the walk engine's output at
+``t = k * control_dt``) and runs ``substeps`` ``mjx.step`` calls holding them. Only the torso
 trace ``(T + 1, 6)`` per ant (root position and up axis after each control step, row 0 = start)
 is kept, the same as the native backend returns; ``record=True`` also returns the joint
 positions ``qpos`` after each control step (for plots).
@@ -16,7 +16,7 @@ import jax.numpy as jnp
 from mujoco import mjx
 
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
-from eaco_jax.gait.walk_engine import joint_targets, stand_pose
+from eaco_jax.gait.walk_engine import stand_pose
 from eaco_jax.robots import RobotSpec
 
 
@@ -39,40 +39,35 @@ def root_trace(qpos: jax.Array) -> jax.Array:
 
 
 def mjx_trace(
-    params: jax.Array,
-    n_steps: int,
+    controls: jax.Array,
     spec: RobotSpec,
     slope_deg: float = 0.0,
-    heading: float = 0.0,
     accuracy: str = "fast",
     record: bool = False,
 ):
-    """Roll out gaits ``params`` ``(ants, d)`` for ``n_steps`` control steps on MJX.
+    """Roll out control sequences ``controls`` ``(ants, T, nu)`` on MJX.
 
-    Returns the torso trace ``(ants, n_steps + 1, 6)`` (and ``qpos`` ``(ants, n_steps + 1, nq)``
-    when ``record``). Traceable: call it inside jit / scan.
+    The walk engine's targets are computed before the rollout (one batched op over ants and
+    time), so the scan body holds nothing but physics: set ``ctrl``, ``substeps`` ``mjx.step``
+    calls, keep the torso pose. Returns the torso trace ``(ants, T + 1, 6)`` (and ``qpos``
+    ``(ants, T + 1, nq)`` when ``record``). Traceable: call it inside jit / scan.
     """
     model = native_model(spec, float(slope_deg), accuracy)
     k = substeps(spec, model)
     mm = mjx_model(spec, float(slope_deg), accuracy)
     qpos0 = jnp.asarray(initial_state(spec, model, slope_deg)[1 : 1 + model.nq], jnp.float32)
     ctrl0 = jnp.asarray(stand_pose(spec, slope_deg), jnp.float32)
+    data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
 
-    def one(p: jax.Array):
-        data = mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0)
-        data = mjx.forward(mm, data)
-
-        def control_step(d, i):
-            u = joint_targets(p, i.astype(jnp.float32) * spec.control_dt, spec, heading,
-                              slope_deg)
-            d = d.replace(ctrl=u)
-            d = jax.lax.fori_loop(0, k, lambda _, dd: mjx.step(mm, dd), d)
+    def one(u_seq: jax.Array):
+        def control_step(d, u):
+            d = jax.lax.fori_loop(0, k, lambda _, dd: mjx.step(mm, dd), d.replace(ctrl=u))
             return d, (root_trace(d.qpos), d.qpos if record else None)
 
-        _, (trace, qpos) = jax.lax.scan(control_step, data, jnp.arange(n_steps))
+        _, (trace, qpos) = jax.lax.scan(control_step, data, u_seq)
         trace = jnp.concatenate([root_trace(qpos0)[None], trace], 0)
         if record:
             return trace, jnp.concatenate([qpos0[None], qpos], 0)
         return trace
 
-    return jax.vmap(one)(params)
+    return jax.vmap(one)(controls.astype(jnp.float32))

@@ -62,14 +62,17 @@ class GaitProblem:
         """Control steps in the horizon."""
         return int(round(self.horizon / self.spec.control_dt))
 
+    def controls(self, solutions: jax.Array) -> jax.Array:
+        """The walk engine's joint targets ``(m, n_steps, nu)`` for gaits ``(m, dim)``."""
+        heading = math.radians(self.direction_deg)
+        return jax.vmap(lambda p: control_sequence(
+            p, self.n_steps, self.spec, heading, self.slope_deg))(solutions)
+
     def trace(self, solutions: jax.Array) -> jax.Array:
         """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` on this backend."""
-        heading = math.radians(self.direction_deg)
+        controls = self.controls(solutions)
         if self.backend == "mjx":
-            return mjx_trace(solutions, self.n_steps, self.spec, self.slope_deg, heading,
-                             self.accuracy)
-        controls = jax.vmap(lambda p: control_sequence(
-            p, self.n_steps, self.spec, heading, self.slope_deg))(solutions)
+            return mjx_trace(controls, self.spec, self.slope_deg, self.accuracy)
         return native_trace_callback(controls, self.spec, self.slope_deg, self.accuracy)
 
     def summarize(self, trace: jax.Array) -> GaitSummary:
@@ -110,17 +113,14 @@ class GaitProblem:
             backend=_resolve_backend(backend or self.backend),
             horizon=float(horizon if horizon is not None else self.horizon))
         x = jnp.clip(jnp.asarray(p)[None], prob.lower, prob.upper)
-        heading = math.radians(prob.direction_deg)
+        controls = jax.jit(prob.controls)(x)
         if prob.backend == "mjx":
-            run = jax.jit(lambda x: mjx_trace(x, prob.n_steps, prob.spec, prob.slope_deg,
-                                              heading, prob.accuracy, record=True))
-            trace, qpos = (np.asarray(a) for a in run(x))
+            run = jax.jit(lambda c: mjx_trace(c, prob.spec, prob.slope_deg, prob.accuracy,
+                                              record=True))
+            trace, qpos = (np.asarray(a) for a in run(controls))
         else:
-            controls = np.asarray(jax.jit(jax.vmap(
-                lambda q: control_sequence(q, prob.n_steps, prob.spec, heading,
-                                           prob.slope_deg)))(x))
-            trace, qpos = native_trace(controls, prob.spec, prob.slope_deg, prob.accuracy,
-                                       record_qpos=True)
+            trace, qpos = native_trace(np.asarray(controls), prob.spec, prob.slope_deg,
+                                       prob.accuracy, record_qpos=True)
         metrics = gait_fitness(prob.summarize(jnp.asarray(trace)), prob.direction_deg)
         out: dict[str, Any] = {k: np.asarray(v)[0].item() for k, v in metrics.items()}
         out["fell"] = bool(out["fell"])
@@ -135,9 +135,7 @@ class GaitProblem:
             out["torso_xyz"] = trace[0, :, :3]
             out["torso_up"] = trace[0, :, 3:]
             out["qpos"] = qpos[0]
-            out["controls"] = np.asarray(jax.vmap(
-                lambda q: control_sequence(q, prob.n_steps, prob.spec, heading,
-                                           prob.slope_deg))(x))[0]
+            out["controls"] = np.asarray(controls)[0]
         return out
 
     def as_constrained(self):
