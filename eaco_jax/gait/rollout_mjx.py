@@ -1,4 +1,4 @@
-"""Batched gait rollouts on MJX: ``vmap`` over ants of a ``lax.scan`` over control steps.
+"""Batched gait rollouts on MJX: a ``lax.scan`` over control steps of ``vmap(mjx.step)``.
 
 Each control step sets the ant's precomputed position targets (the walk engine's output at
 ``t = k * control_dt``) and runs ``substeps`` ``mjx.step`` calls holding them. Only the torso
@@ -58,16 +58,19 @@ def mjx_trace(
     qpos0 = jnp.asarray(initial_state(spec, model, slope_deg)[1 : 1 + model.nq], jnp.float32)
     ctrl0 = jnp.asarray(stand_pose(spec, slope_deg), jnp.float32)
     data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
+    m = controls.shape[0]
+    data = jax.tree.map(lambda a: jnp.broadcast_to(a, (m,) + a.shape), data)
+    step = jax.vmap(lambda d: mjx.step(mm, d))
 
-    def one(u_seq: jax.Array):
-        def control_step(d, u):
-            d = jax.lax.fori_loop(0, k, lambda _, dd: mjx.step(mm, dd), d.replace(ctrl=u))
-            return d, (root_trace(d.qpos), d.qpos if record else None)
+    def control_step(d, u):  # the whole colony: u (ants, nu)
+        d = jax.lax.fori_loop(0, k, lambda _, dd: step(dd), d.replace(ctrl=u))
+        return d, (root_trace(d.qpos), d.qpos if record else None)
 
-        _, (trace, qpos) = jax.lax.scan(control_step, data, u_seq)
-        trace = jnp.concatenate([root_trace(qpos0)[None], trace], 0)
-        if record:
-            return trace, jnp.concatenate([qpos0[None], qpos], 0)
-        return trace
-
-    return jax.vmap(one)(controls.astype(jnp.float32))
+    _, (trace, qpos) = jax.lax.scan(control_step, data,
+                                    jnp.swapaxes(controls.astype(jnp.float32), 0, 1))
+    start = jnp.broadcast_to(root_trace(qpos0), (1, m, 6))
+    trace = jnp.swapaxes(jnp.concatenate([start, trace], 0), 0, 1)
+    if record:
+        qpos = jnp.concatenate([jnp.broadcast_to(qpos0, (1, m, qpos0.shape[0])), qpos], 0)
+        return trace, jnp.swapaxes(qpos, 0, 1)
+    return trace
