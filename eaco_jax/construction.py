@@ -9,11 +9,11 @@ T_k it chooses the next node j
 
 The choice weights may be multiplied by a per-ant chaos factor (see :mod:`eaco_jax.chaos`).
 All ants move together: one scan step is a batched gather of the current rows of the weight
-matrix (or of the k candidate columns, see ``candidates``), a tabu mask, a cumulative sum and
-one uniform draw per ant (inverse-CDF sampling); there is no Python loop over ants or steps.
-Every step gets its own PRNG key, split from the caller's key; the uniforms of all steps are
-drawn in one batched call before the scan (XLA:CPU pays a fixed cost per operation inside a
-loop, so fewer, larger operations are faster).
+matrix (or of the k candidate columns, see ``candidates``), a tabu mask (``alive``: 1 for
+nodes still to visit, 0 for visited ones), prefix sums and one uniform draw per ant, used for
+both the q0 rule and inverse-CDF sampling; there is no Python loop over ants or steps. The
+uniforms of all steps are drawn in one call before the scan, a row per step (XLA:CPU pays a
+cost per operation inside a loop, so fewer, larger operations are faster).
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ import jax.numpy as jnp
 Array = jax.Array
 #: construction steps per loop iteration of the compiled scan (fewer loop round-trips on CPU)
 UNROLL = 2
+#: rows up to this length (candidate lists) take prefix sums as a matmul, longer ones cumsum
+MATMUL_CUMSUM = 64
 
 
 def choice_weights(tau: Array, log_eta: Array, alpha: Array, beta: Array) -> Array:
@@ -47,70 +49,106 @@ def heuristic_log_eta(dist: Array) -> Array:
     return jnp.where(jnp.eye(n, dtype=bool), -jnp.inf, log_eta)
 
 
-def _step(
-    weights: Array,
-    row_offset: Array,
-    q0: Array,
-    factor: Array | None,
-    candidates: Array | None,
-):
-    n = weights.shape[1]
-    nodes = jnp.arange(n, dtype=jnp.int32)
-    id_bits = max(1, (n - 1).bit_length())
-    value_scale = float((1 << (31 - id_bits)) - 1)
-    if candidates is not None:
-        # choice weights of each row's candidates, gathered once per construction: (R, k)
-        cand_rows = jnp.concatenate([candidates] * (weights.shape[0] // n), axis=0)
-        cand_w = jnp.take_along_axis(weights, cand_rows, axis=1)
+def _packed_argmax(score: Array, ids: Array, id_bits: int) -> tuple[Array, Array]:
+    """(argmax, max > 0) of non-negative float scores along the last axis as ONE int32 max:
+    the float's bits (monotonic for non-negative floats) high, the index in the low
+    ``id_bits`` (XLA:CPU's variadic argmax reduce is several times slower)."""
+    bits = jax.lax.bitcast_convert_type(score, jnp.int32)
+    best = jnp.max((bits & ~((1 << id_bits) - 1)) | ids, axis=-1)
+    return best & ((1 << id_bits) - 1), (best >> id_bits) > 0
 
-    def pick(w: Array, u: Array) -> tuple[Array, Array, Array]:
-        """Greedy index, Eq. 2 sample (inverse CDF), and whether any weight is positive."""
-        greedy = jnp.argmax(w, axis=1)
+
+def _sample(w: Array, u: Array, q0: Array, ids: Array, bits: int) -> tuple[Array, Array]:
+    """Index chosen by the q0 rule and Eq. 2 from weights ``w`` (m, k) (tabu entries 0) with
+    one uniform ``u`` per ant, and whether any weight is positive.
+
+    ``u < q0``: the greedy argmax. Otherwise ``v = (u - q0) / (1 - q0)`` is uniform on [0, 1)
+    again and picks by inverse CDF: the number of prefix sums below ``v * total``. For short
+    rows (candidate lists) the prefix sums are one small matmul with a triangular matrix and the
+    greedy index a packed max (both faster on XLA:CPU than ``cumsum`` / ``argmax``; the packed
+    max treats weights within 2^-18 of each other as ties).
+    """
+    k = w.shape[-1]
+    if k <= MATMUL_CUMSUM:
+        greedy, ok = _packed_argmax(w, ids, bits)
+        cum = w @ jnp.triu(jnp.ones((k, k), w.dtype))
+    else:  # whole rows: exact argmax, O(k) prefix sums
+        greedy, ok = jnp.argmax(w, axis=1).astype(jnp.int32), jnp.any(w > 0, axis=1)
         cum = jnp.cumsum(w, axis=1)
-        total = cum[:, -1]
-        above = cum > (u[0] * total)[:, None]
-        sampled = jnp.where(jnp.any(above, axis=1), jnp.argmax(above, axis=1), greedy)
-        chosen = jnp.where(u[1] < q0, greedy, sampled)
-        return chosen, total > 0, greedy
+    v = (u - q0) / jnp.maximum(1.0 - q0, 1e-12)
+    target = jnp.maximum(v * cum[:, -1], jnp.finfo(w.dtype).tiny)
+    sampled = jnp.minimum(jnp.sum(cum < target[:, None], axis=1, dtype=jnp.int32), k - 1)
+    # float rounding could land on a zero (tabu) weight: keep the greedy choice then
+    hit = jnp.sum(jnp.where(ids == sampled[:, None], w, 0.0), axis=1)
+    sampled = jnp.where(hit > 0, sampled, greedy)
+    return jnp.where(u < q0, greedy, sampled), ok
 
-    def full_row(current: Array, visited: Array, u: Array) -> Array:
-        w = weights[row_offset + current]  # (m, n)
-        if factor is not None:
-            w = w * factor
-        w = jnp.where(visited, -1.0, w)
-        chosen, ok, _ = pick(jnp.maximum(w, 0.0), u)
-        # all allowed weights zero (underflow): best allowed node by weight, never a tabu one
-        return jnp.where(ok, chosen, jnp.argmax(w, axis=1))
 
-    def best_allowed(current: Array, visited: Array) -> Array:
-        """argmax of the allowed weights as ONE int32 max: weight quantised to the high bits,
-        node id in the low bits (XLA:CPU's variadic argmax reduce is several times slower)."""
-        w = weights[row_offset + current]
-        if factor is not None:
-            w = w * factor
-        w = w if factor is None else w * 0.5  # chaos factors are <= 2
-        q = (jnp.clip(w, 0.0, 1.0) * value_scale).astype(jnp.int32)  # rows scaled to max 1
-        packed = jnp.where(visited, -1, q * (1 << id_bits) + nodes[None, :])
-        return jnp.max(packed, axis=1) & ((1 << id_bits) - 1)
+def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
+          candidates: Array | None, wide: Array | None):
+    n = weights.shape[1]
+    m = row_offset.shape[0]
+    nodes = jnp.arange(n, dtype=jnp.int32)
+    node_bits = max(1, (n - 1).bit_length())
+    ant_base = (jnp.arange(m, dtype=jnp.int32) * n)[:, None]
+    lazy = jax.default_backend() == "cpu"
+
+    def row_weights(current: Array, alive: Array) -> Array:
+        w = weights[row_offset + current] * alive  # (m, n), tabu nodes 0
+        return w if factor is None else w * factor
+
+    def best_allowed(current: Array, alive: Array) -> Array:
+        """The allowed node of largest weight; the first allowed one if all weights are 0."""
+        best, ok = _packed_argmax(row_weights(current, alive), nodes[None, :], node_bits)
+        return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
+
+    if candidates is None:
+        def step(carry, u):
+            current, alive = carry
+            w = row_weights(current, alive)
+            nxt, ok = _sample(w, u, q0, nodes[None, :], node_bits)
+            nxt = jnp.where(ok, nxt, jnp.argmax(alive, axis=1).astype(jnp.int32))
+            return (nxt, alive.at[jnp.arange(m), nxt].set(0.0, unique_indices=True)), nxt
+
+        return step
+
+    k = candidates.shape[1]
+    copies = weights.shape[0] // n
+    lists = [jnp.concatenate([c] * copies, axis=0) for c in (candidates, wide) if c is not None]
+    tables = [(c, jnp.take_along_axis(weights, c, axis=1)) for c in lists]  # gathered once
+
+    def gather(table: tuple[Array, Array], row: Array, alive: Array) -> tuple[Array, Array]:
+        """Each ant's candidates ``(m, k)`` and their weights (0 when tabu)."""
+        cand = table[0][row]
+        w = table[1][row] * alive.reshape(-1)[ant_base + cand]
+        return cand, w if factor is None else w * factor.reshape(-1)[ant_base + cand]
+
+    def best_of(table: tuple[Array, Array], row: Array, alive: Array):
+        cand, w = gather(table, row, alive)
+        b, ok = _packed_argmax(w, jnp.arange(w.shape[1], dtype=jnp.int32)[None, :],
+                               max(1, (w.shape[1] - 1).bit_length()))
+        return jnp.take_along_axis(cand, b[:, None], axis=1)[:, 0], ok
 
     def step(carry, u):
-        current, visited = carry
-        if candidates is None:
-            nxt = full_row(current, visited, u)
-        else:
-            row = row_offset + current
-            cand = cand_rows[row]  # (m, k)
-            w = cand_w[row]
-            if factor is not None:
-                w = w * jnp.take_along_axis(factor, cand, axis=1)
-            w = jnp.where(jnp.take_along_axis(visited, cand, axis=1), 0.0, w)
-            chosen, ok, _ = pick(w, u)
-            nxt_c = jnp.take_along_axis(cand, chosen[:, None], axis=1)[:, 0]
-            # all candidates tabu: the best allowed node over the whole row (ACOTSP's rule)
-            nxt = jnp.where(ok, nxt_c, best_allowed(current, visited))
-        nxt = nxt.astype(jnp.int32)
-        visited = visited | (nodes[None, :] == nxt[:, None])
-        return (nxt, visited), nxt
+        current, alive = carry
+        row = row_offset + current
+        cand, w = gather(tables[0], row, alive)
+        c, ok = _sample(w, u, q0, jnp.arange(k, dtype=jnp.int32)[None, :],
+                        max(1, (k - 1).bit_length()))
+        nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
+
+        def fallback():
+            """Ants whose candidates are all tabu: the allowed node of largest weight among
+            the ``wide`` list, then over the whole row (ACOTSP's rule)."""
+            best, ok2 = best_of(tables[1], row, alive) if wide is not None else (nxt, ok)
+            full = lambda: jnp.where(ok2, best, best_allowed(current, alive))  # noqa: E731
+            best = jax.lax.cond(jnp.all(ok | ok2), lambda: best, full) if lazy else full()
+            return jnp.where(ok, nxt, best)
+
+        # On CPU the fallbacks run only on steps where some ant needs them; on accelerators a
+        # per-step branch costs more than it saves, so they always run there.
+        nxt = jax.lax.cond(jnp.all(ok), lambda: nxt, fallback) if lazy else fallback()
+        return (nxt, alive.at[jnp.arange(m), nxt].set(0.0, unique_indices=True)), nxt
 
     return step
 
@@ -123,11 +161,12 @@ def construct_tours(
     row_offset: Array | None = None,
     factor: Array | None = None,
     candidates: Array | None = None,
+    wide: Array | None = None,
 ) -> Array:
     """Build one tour per ant.
 
     Args:
-      key: PRNG key; one subkey per construction step is split from it.
+      key: PRNG key; one draw with it gives every step its own row of uniforms.
       weights: (R, n) non-negative choice weights (from :func:`choice_weights`); an ant at node
         i reads row ``row_offset[k] + i`` (R = n normally; stacking matrices lets some ants, e.g.
         the pheromone-greedy ant of Eq. 6, use different weights in the same scan).
@@ -138,6 +177,10 @@ def construct_tours(
         the q0 rule act on the k candidates that are not tabu, and an ant whose candidates are
         all tabu moves to the allowed node of largest weight (as ACOTSP does); the cost of a
         step drops from O(m n) sampling to O(m k). Without them Eq. 2 runs over all n nodes.
+      wide: optional (n, K) longer candidate lists (K > k nearest neighbours): an ant whose
+        candidates are all tabu takes the allowed node of largest weight among these first,
+        and searches its whole row only when they are all tabu too (the same choice unless a
+        node outside the K nearest outweighs every allowed node inside them).
 
     Returns:
       (m, n) int32 tours, each a permutation of 0..n-1 starting at ``starts``.
@@ -150,12 +193,12 @@ def construct_tours(
     if row_offset is None:
         row_offset = jnp.zeros((m,), jnp.int32)
     q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
-    visited = jnp.arange(n)[None, :] == starts[:, None]
-    # one key per step, all steps' uniforms drawn in one batched call before the scan
-    keys = jax.random.split(key, max(n - 1, 1))[: n - 1]
-    uniforms = jax.vmap(lambda k: jax.random.uniform(k, (2, m)))(keys)
-    step = _step(weights, row_offset.astype(jnp.int32), q0, factor, candidates)
-    _, path = jax.lax.scan(step, (starts, visited), uniforms, unroll=UNROLL)
+    alive = jnp.where(jnp.arange(n)[None, :] == starts[:, None], 0.0, 1.0)
+    uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
+    if wide is not None and candidates is None:
+        raise ValueError("a wide fallback list needs candidate lists")
+    step = _step(weights, row_offset.astype(jnp.int32), q0, factor, candidates, wide)
+    _, path = jax.lax.scan(step, (starts, alive), uniforms, unroll=UNROLL)
     return jnp.concatenate([starts[:, None], path.T], axis=1)
 
 

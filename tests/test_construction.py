@@ -94,6 +94,27 @@ def test_first_step_follows_eq2_probabilities():
     np.testing.assert_allclose(freq, raw / raw.sum(), atol=0.015)
 
 
+@pytest.mark.parametrize("use_candidates", [False, True])
+def test_first_step_mixes_greedy_and_eq2_by_q0(use_candidates):
+    """With 0 < q0 < 1 the next node is the greedy one with probability q0 and an Eq. 2 draw
+    otherwise (one uniform per ant serves both), over all nodes or over the candidates."""
+    d, tau, nbr = _instance(n=10, seed=6)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    cands = nbr[:, :4] if use_candidates else None
+    m, q0 = 20000, 0.3
+    tours = np.asarray(construct_tours(jax.random.key(6), w, jnp.zeros(m, jnp.int32), q0=q0,
+                                       candidates=cands))
+    freq = np.bincount(tours[:, 1], minlength=10) / m
+    raw = np.asarray(w[0], np.float64).copy()
+    if use_candidates:
+        keep = np.zeros(10, bool)
+        keep[np.asarray(cands[0])] = True
+        raw[~keep] = 0
+    p = (1 - q0) * raw / raw.sum()
+    p[np.argmax(raw)] += q0
+    np.testing.assert_allclose(freq, p, atol=0.015)
+
+
 def test_candidate_step_samples_only_allowed_candidates_and_falls_back_to_best():
     d, tau, nbr = _instance(n=10, seed=5)
     w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
@@ -102,6 +123,33 @@ def test_candidate_step_samples_only_allowed_candidates_and_falls_back_to_best()
     # first move from node 0 is always one of its candidates
     assert set(np.unique(tours[:, 1])) <= set(np.asarray(nbr[0]).tolist())
     assert _is_perm(tours)
+
+
+@pytest.mark.parametrize("wide_k", [0, 7])
+def test_greedy_on_candidates_falls_back_to_wide_list_then_whole_row(wide_k):
+    """q0 = 1 with candidate lists: the best allowed candidate; when all are tabu, the best
+    allowed node of the ``wide`` list, then of the whole row (checked against numpy)."""
+    n = 14
+    d, tau, _ = _instance(n=n, seed=7)
+    order = np.argsort(np.where(np.eye(n), np.inf, np.asarray(d)), axis=1)
+    nbr, wide = order[:, :3].astype(np.int32), order[:, :wide_k].astype(np.int32)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    wn = np.asarray(w, np.float64)
+    tours = np.asarray(construct_tours(
+        jax.random.key(7), w, jnp.arange(n, dtype=jnp.int32), q0=1.0,
+        candidates=jnp.asarray(nbr), wide=jnp.asarray(wide) if wide_k else None))
+    for s in range(n):
+        tour, seen = [s], {s}
+        for _ in range(n - 1):
+            c = tour[-1]
+            for pool in (nbr[c], wide[c], np.arange(n)):
+                allowed = [j for j in pool if j not in seen]
+                if allowed:
+                    break
+            nxt = max(allowed, key=lambda j: wn[c, j])
+            tour.append(nxt)
+            seen.add(nxt)
+        assert tours[s].tolist() == tour
 
 
 def test_row_offset_lets_one_ant_use_other_weights():

@@ -103,7 +103,8 @@ class GraphState(State):
     tau: Array  # (n, n) pheromone
     log_eta: Array  # (n, n) heuristic cache log(1/d)
     dist: Array  # (n, n)
-    neighbors: Array  # (n, k) candidate lists for local search
+    neighbors: Array  # (n, k) candidate lists for construction and local search
+    wide_neighbors: Array  # (n, K) longer lists for the construction's fallback (K may be 0)
     chaos: Array  # (m, n) logistic-map variables
     tau_min: Array
     tau_max: Array
@@ -133,11 +134,16 @@ class GraphEACO(Strategy):
     max_ls_moves: int | None = None
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
+    #: an ant whose candidates are all tabu picks the best allowed node among this many
+    #: nearest before searching its whole row (0: straight to the whole row)
+    wide_candidates: int = 128
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
         if self.num_ants < 1:
             raise ValueError(f"num_ants must be >= 1, got {self.num_ants}")
+        if self.wide_candidates < 0:
+            raise ValueError(f"wide_candidates must be >= 0, got {self.wide_candidates}")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
@@ -187,6 +193,11 @@ class GraphEACO(Strategy):
                 f"graph problem needs an (n, n) distance matrix, n >= 3; got {dist.shape}")
         neighbors = jnp.asarray(problem.neighbors, jnp.int32)
         log_eta = heuristic_log_eta(dist)
+        wide = min(self.wide_candidates, n - 1) if self.candidate_lists else 0
+        wide = 0 if wide <= neighbors.shape[1] else wide
+        # the K nearest other nodes (self excluded even where distances are 0)
+        wide_neighbors = jax.lax.top_k(-jnp.where(jnp.eye(n, dtype=bool), jnp.inf, dist),
+                                       wide)[1].astype(jnp.int32)
         k_chaos, key = jax.random.split(key)
         # nearest-neighbour tour from node 0: greedy on eta alone
         nn_weights = choice_weights(jnp.ones_like(dist), log_eta, _f(0.0), _f(1.0))
@@ -202,6 +213,7 @@ class GraphEACO(Strategy):
             log_eta=log_eta,
             dist=dist,
             neighbors=neighbors,
+            wide_neighbors=wide_neighbors,
             chaos=chaos.logistic_init(k_chaos, (self.num_ants, n)),
             tau_min=tau_min,
             tau_max=tau_max,
@@ -242,7 +254,14 @@ class GraphEACO(Strategy):
         offset = jnp.concatenate([jnp.zeros((m,), jnp.int32), jnp.full((1,), n, jnp.int32)])
         q0 = jnp.concatenate([jnp.full((m,), p.q0), jnp.ones((1,))])
         cands = state.neighbors if self.candidate_lists else None
-        built = construct_tours(k_build, stacked, starts, q0, offset, factor, cands)
+        wide = state.wide_neighbors if state.wide_neighbors.shape[1] else None
+
+        def build(chaos_factor):
+            return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands,
+                                   wide)
+
+        # without chaos the factor is all ones: skip its per-step gathers and products
+        built = jax.lax.cond(p.use_chaos > 0.5, lambda: build(factor), lambda: build(None))
         tours, pher_tour = built[:m], built[m:]
         l_pn = tour_lengths(state.dist, pher_tour)[0]
 
@@ -326,19 +345,20 @@ class GraphEACO(Strategy):
         i_best = jnp.argmin(lengths)
         tau = state.tau
         # Eq. 68-70
-        tau = jnp.where(
+        # switched-off rules are skipped (lax.cond; a select under vmap over switches)
+        tau = jax.lax.cond(
             on(p.use_local_update),
-            pheromone.local_update(tau, solutions, lengths, rho_t, p.q),
-            tau,
+            lambda t: pheromone.local_update(t, solutions, lengths, rho_t, p.q),
+            lambda t: t, tau,
         )
         # Eq. 71 on the best-so-far tour (every gb_every iterations) or the iteration best
         use_gb = (state.iteration % jnp.maximum(p.gb_every, 1.0).astype(jnp.int32)) == 0
         target = jnp.where(use_gb, state.best_solution, solutions[i_best])
         target_len = jnp.where(use_gb, state.best_cost, lengths[i_best])
-        tau = jnp.where(
+        tau = jax.lax.cond(
             on(p.use_global_update),
-            pheromone.global_update(tau, target, target_len, alpha_g),
-            tau,
+            lambda t: pheromone.global_update(t, target, target_len, alpha_g),
+            lambda t: t, tau,
         )
         # Eq. 3-5 deposit weights, Eq. 73-74 elitist reinforcement
         mask = jnp.where(
@@ -348,13 +368,13 @@ class GraphEACO(Strategy):
         ).astype(jnp.float32)
         weight_n = pheromone.adaptive_weight(lengths, state.pheromone_tour_length)
         weights = mask * jnp.where(on(p.use_adaptive_weight), 2.0 * weight_n, 1.0)
-        tau = jnp.where(
+        tau = jax.lax.cond(
             on(p.use_elitist),
-            pheromone.elitist_update(
-                tau, solutions, lengths, weights / self.num_ants, state.best_solution,
+            lambda t: pheromone.elitist_update(
+                t, solutions, lengths, weights / self.num_ants, state.best_solution,
                 state.best_cost, rho_t, p.q, p.sigma,
             ),
-            tau,
+            lambda t: t, tau,
         )
         # Eq. 7 and MMAS restart
         tau_max, tau_min = self._bounds(p, state.best_cost, n)
