@@ -5,7 +5,8 @@ found the optimum. Small instances (eil51 ... kroA100) run an iteration budget; 
 (a280, pcb442) run for a wall-clock budget per run (``--time-limit``, 60 s). Seeds are vmapped
 into one compiled call; for the timed instances the group of S vmapped seeds runs for
 S x time-limit seconds of wall time (the same CPU time as S sequential runs of time-limit each),
-and the table reports that per-run equivalent. Run with and without 2-opt local search.
+and the table reports that per-run equivalent; ``--sequential`` runs each seed alone instead
+(``taskset -c 0 ...`` pins a run to one core). Run with and without 2-opt local search.
 
     python experiments/tsp_quality.py            # full table (long: tens of minutes on 2 cores)
     python experiments/tsp_quality.py --quick    # smoke run: 2 seeds, small budgets
@@ -16,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -65,6 +67,20 @@ def run_group(problem, strategy, seeds, *, iterations=None, time_limit=None, chu
     }
 
 
+def merge_runs(runs: list[dict]) -> dict:
+    """One record for several groups of seeds: lengths and restarts concatenated, iterations
+    per group listed, seconds summed."""
+    if len(runs) == 1:
+        return runs[0]
+    return {
+        "lengths": [x for r in runs for x in r["lengths"]],
+        "iterations": [r["iterations"] for r in runs],
+        "run_seconds": sum(r["run_seconds"] for r in runs),
+        "compile_seconds": sum(r["compile_seconds"] for r in runs),
+        "restarts": [x for r in runs for x in r["restarts"]],
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smoke run: 2 seeds, small budgets")
@@ -76,6 +92,11 @@ def main() -> None:
     ap.add_argument("--time-limit", type=float, default=60.0, help="seconds per run, large")
     ap.add_argument("--instances", nargs="+", default=SMALL + LARGE)
     ap.add_argument("--modes", nargs="+", default=["ls", "no-ls"], choices=["ls", "no-ls"])
+    ap.add_argument("--timed", nargs="*", default=LARGE,
+                    help="instances run for --time-limit seconds instead of an iteration budget")
+    ap.add_argument("--sequential", action="store_true",
+                    help="run seeds one at a time (each alone for --time-limit seconds) instead "
+                         "of vmapped together")
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
     if args.quick:
@@ -93,16 +114,19 @@ def main() -> None:
         for name in args.instances:
             problem = load_tsplib(name)
             large = name in LARGE
+            timed = name in args.timed
             n_seeds = (args.large_seeds or args.seeds) if large else args.seeds
             seeds = list(range(n_seeds))
             strategy = GraphEACO(local_search="2opt" if mode == "ls" else "none")
-            if large:
-                r = run_group(problem, strategy, seeds, time_limit=args.time_limit * n_seeds,
-                              chunk=5 if mode == "ls" else 20)
+            groups = [[s] for s in seeds] if args.sequential else [seeds]
+            if timed:
+                runs = [run_group(problem, strategy, g, time_limit=args.time_limit * len(g),
+                                  chunk=5 if mode == "ls" else 20) for g in groups]
             else:
                 budget = args.iterations if mode == "ls" else args.iterations_no_ls
-                r = run_group(problem, strategy, seeds, iterations=budget,
-                              chunk=max(1, budget // 10))
+                runs = [run_group(problem, strategy, g, iterations=budget,
+                                  chunk=max(1, budget // 10)) for g in groups]
+            r = merge_runs(runs)
             opt = float(problem.optimum)
             gaps = [100.0 * (length / opt - 1.0) for length in r["lengths"]]
             row = dict(instance=name, n=problem.n, optimum=opt, mode=mode, seeds=n_seeds,
@@ -111,7 +135,9 @@ def main() -> None:
                        optimum_hits=int(sum(g == 0 for g in gaps)),
                        seconds_per_run=r["run_seconds"] / n_seeds, gaps_percent=gaps, **r)
             rows.append(row)
-            print(f"{name:>9} {mode:>5} {n_seeds:>5} {r['iterations']:>6} "
+            iters = r["iterations"]
+            iters = int(np.median(iters)) if isinstance(iters, list) else iters
+            print(f"{name:>9} {mode:>5} {n_seeds:>5} {iters:>6} "
                   f"{row['mean_gap_percent']:9.3f} {row['min_gap_percent']:6.2f} "
                   f"{row['max_gap_percent']:6.2f} {row['optimum_hits']:>4} "
                   f"{row['seconds_per_run']:7.1f}", flush=True)
@@ -119,6 +145,8 @@ def main() -> None:
             args.out.write_text(json.dumps({
                 "device": str(jax.devices()[0]), "cpu_count": os.cpu_count(),
                 "quick": args.quick, "strategy": "GraphEACO() defaults", "rows": rows,
+                "sequential": args.sequential, "time_limit": args.time_limit,
+                "command": "python " + " ".join(sys.argv),
             }, indent=2) + "\n")
     print(f"wrote {args.out}")
 

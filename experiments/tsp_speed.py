@@ -57,8 +57,8 @@ def main() -> None:
     ap.add_argument("--ants", type=int, default=40)
     ap.add_argument("--instances", nargs="+", default=["eil51", "kroA100", "a280"])
     ap.add_argument("--variants", nargs="+", default=["core", "eaco"], choices=["core", "eaco"])
-    ap.add_argument("--chunk", type=int, default=20, help="iterations per compiled call")
-    ap.add_argument("--chunks", type=int, default=5, help="timed calls (median taken)")
+    ap.add_argument("--chunk", type=int, default=50, help="iterations per compiled call")
+    ap.add_argument("--chunks", type=int, default=10, help="timed calls (median taken)")
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
 

@@ -110,7 +110,8 @@ class GraphState(State):
     tau_max: Array
     rho_t: Array  # evaporation rate in force (stagnation schedule)
     adaptive_rho: Array  # mean Eq. 5 weight of the last iteration
-    pheromone_tour_length: Array  # L_pn of the last iteration (Eq. 6 tour)
+    pheromone_tour_length: Array  # L_pn of the last iteration (Eq. 6 tour; with the adaptive
+    # weight off, the greedy tour on the colony weights, which nothing uses)
     p_crossover_t: Array  # mean self-adaptive crossover rate of the last iteration
     p_mutation_t: Array
     since_improvement: Array  # restart counter
@@ -246,7 +247,12 @@ class GraphEACO(Strategy):
         factor = jnp.concatenate([factor, jnp.ones((1, n), jnp.float32)], axis=0)
 
         weights = choice_weights(state.tau, state.log_eta, p.alpha, p.beta)
-        greedy_tau = choice_weights(state.tau, state.log_eta, _f(1.0), _f(0.0))  # Eq. 6
+        # Eq. 6's pheromone-greedy ant; its weights are only computed when Eq. 5 uses L_pn
+        # (otherwise it reuses the colony's weights and its length is not used)
+        greedy_tau = jax.lax.cond(
+            p.use_adaptive_weight > 0.5,
+            lambda: choice_weights(state.tau, state.log_eta, _f(1.0), _f(0.0)),
+            lambda: weights)
         stacked = jnp.concatenate([weights, greedy_tau], axis=0)  # (2n, n)
         starts = jnp.concatenate(
             [jax.random.randint(k_start, (m,), 0, n, jnp.int32), jnp.zeros((1,), jnp.int32)]
