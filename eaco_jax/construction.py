@@ -140,7 +140,8 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
         def fallback():
             """Ants whose candidates are all tabu: the allowed node of largest weight among
             the ``wide`` list, then over the whole row (ACOTSP's rule)."""
-            best, ok2 = best_of(tables[1], row, alive) if wide is not None else (nxt, ok)
+            # (on accelerators the whole row is searched anyway: the wide list adds nothing)
+            best, ok2 = best_of(tables[1], row, alive) if wide is not None and lazy else (nxt, ok)
             full = lambda: jnp.where(ok2, best, best_allowed(current, alive))  # noqa: E731
             best = jax.lax.cond(jnp.all(ok | ok2), lambda: best, full) if lazy else full()
             return jnp.where(ok, nxt, best)
