@@ -72,6 +72,20 @@ def test_problem_errors():
     assert ev.f.shape == (2,) and np.all(np.isfinite(ev.f)) and np.all(ev.violation == 0)
 
 
+def test_native_backend_without_cpu_platform_says_how_to_fix():
+    """JAX_PLATFORMS=cuda hides the CPU device pure_callback needs: a clear error up front."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("from eaco_jax.problems.gait import make_gait_problem\n"
+            "make_gait_problem('nao', backend='native')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**os.environ, "JAX_PLATFORMS": "cuda"}, timeout=120)
+    assert out.returncode != 0
+    assert "ProblemError" in out.stderr and "JAX_PLATFORMS=cuda,cpu" in out.stderr
+
+
 def test_colony_runs_native_rollouts_inside_scan():
     """The native backend's pure_callback works inside minimize's jitted lax.scan."""
     import eaco_jax as ea

@@ -11,6 +11,7 @@ plots and reports need (time, joint angles, torso trajectory, speed, distance, f
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import jax
@@ -168,6 +169,15 @@ def _resolve_backend(backend: str) -> str:
         raise ProblemError(f"unknown backend {backend!r}; use one of {', '.join(BACKENDS)}")
     if backend == "auto":
         return "native" if jax.default_backend() == "cpu" else "mjx"
+    if backend == "native":
+        try:
+            jax.devices("cpu")
+        except (RuntimeError, AssertionError) as err:  # jax raises either, by version
+            raise ProblemError(
+                "the native backend runs MuJoCo on the host CPU through jax.pure_callback, "
+                "which needs JAX's cpu platform, but JAX_PLATFORMS="
+                f"{os.environ.get('JAX_PLATFORMS', '')!r} leaves it out: set "
+                "JAX_PLATFORMS=cuda,cpu (or unset it), or use --backend mjx") from err
     return backend
 
 
