@@ -109,9 +109,7 @@ def evaluate_rate(robot: str, backend: str, batch: int, control_steps: int, repe
     spec = load_robot(robot)
     k = substeps(spec, native_model(spec, 0.0, "fast"))
     problem = make_gait_problem(robot, backend=backend, horizon=control_steps * spec.control_dt)
-    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
-    x = jnp.asarray(lo + (hi - lo) * np.random.default_rng(seed).random((batch, problem.dim)),
-                    jnp.float32)
+    x = random_gaits(problem, batch, seed)
     t0 = time.perf_counter()
     fn = jax.jit(lambda a: problem.evaluate(a).f).lower(x).compile()
     compile_s = time.perf_counter() - t0
@@ -120,71 +118,55 @@ def evaluate_rate(robot: str, backend: str, batch: int, control_steps: int, repe
     return {"compile_s": compile_s, "wall_s": wall, "steps_per_s": steps * batch / wall}
 
 
-def raw_mjx_rate(robot: str, batch: int, steps: int, repeats: int) -> dict[str, Any]:
-    """Physics steps/s of ``lax.scan`` over ``vmap(mjx.step)``: same model, batch, steps."""
-    from mujoco import mjx
-
-    spec = load_robot(robot)
-    model = native_model(spec, 0.0, "fast")
-    mm = mjx_model(spec, 0.0, "fast")
-    qpos0 = jnp.asarray(initial_state(spec, model, 0.0)[1 : 1 + model.nq], jnp.float32)
-    ctrl0 = jnp.asarray(spec.stand_ctrl, jnp.float32)
-    data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
-    batched = jax.tree.map(lambda a: jnp.broadcast_to(a, (batch,) + a.shape), data)
-    step = jax.vmap(lambda d: mjx.step(mm, d))
-
-    @jax.jit
-    def run(d):
-        d, _ = jax.lax.scan(lambda dd, _: (step(dd), None), d, None, length=steps)
-        return d.qpos
-
-    t0 = time.perf_counter()
-    compiled = run.lower(batched).compile()
-    compile_s = time.perf_counter() - t0
-    _, wall = timed(lambda: compiled(batched), repeats)
-    return {"compile_s": compile_s, "wall_s": wall, "physics_steps": steps,
-            "steps_per_s": steps * batch / wall}
+def random_gaits(problem, batch: int, seed: int = 0) -> jax.Array:
+    """``batch`` gait parameter vectors uniform in the problem's bounds."""
+    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
+    return jnp.asarray(lo + (hi - lo) * np.random.default_rng(seed).random((batch, problem.dim)),
+                       jnp.float32)
 
 
-def raw_mjx_walking_rate(robot: str, batch: int, control_steps: int, repeats: int,
-                         seed: int = 0) -> dict[str, Any]:
-    """Raw ``vmap(mjx.step)`` steps/s on the colony's own controls: random gaits' precomputed
-    walk-engine targets, each held for ``substeps`` steps, nothing else in the loop.
+def raw_mjx_rate(robot: str, batch: int, control_steps: int, repeats: int,
+                 walking: bool = False, seed: int = 0) -> dict[str, Any]:
+    """Physics steps/s of ``lax.scan`` over ``vmap(mjx.step)``: same model, batch, steps.
 
-    A walking colony makes the constraint solver work harder than a standing one (MJX's solver
-    loop runs until every batch member converges), so this is the physics-only rate of the same
-    work the colony does; ``colony / raw_walking`` is what the optimiser itself adds.
+    ``walking=False`` holds the standing pose. ``walking=True`` feeds the colony's own kind of
+    controls: random gaits' precomputed walk-engine targets, each held for ``substeps`` steps,
+    nothing else in the loop. A walking colony makes the constraint solver work harder (MJX's
+    solver loop runs until every batch member converges), so that is the physics-only rate of
+    the work the colony does, and ``colony / raw walking`` is what the optimiser itself adds.
     """
     from mujoco import mjx
 
     spec = load_robot(robot)
     model = native_model(spec, 0.0, "fast")
     k = substeps(spec, model)
+    steps = control_steps * k
     mm = mjx_model(spec, 0.0, "fast")
-    problem = make_gait_problem(robot, backend="mjx", horizon=control_steps * spec.control_dt)
-    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
-    x = jnp.asarray(lo + (hi - lo) * np.random.default_rng(seed).random((batch, problem.dim)),
-                    jnp.float32)
-    controls = jnp.swapaxes(jax.jit(problem.controls)(x), 0, 1)  # (T, batch, nu)
     qpos0 = jnp.asarray(initial_state(spec, model, 0.0)[1 : 1 + model.nq], jnp.float32)
     ctrl0 = jnp.asarray(spec.stand_ctrl, jnp.float32)
     data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
     batched = jax.tree.map(lambda a: jnp.broadcast_to(a, (batch,) + a.shape), data)
     step = jax.vmap(lambda d: mjx.step(mm, d))
+    if walking:
+        problem = make_gait_problem(robot, backend="mjx", horizon=control_steps * spec.control_dt)
+        controls = jnp.swapaxes(jax.jit(problem.controls)(random_gaits(problem, batch, seed)),
+                                0, 1)  # (T, batch, nu)
+
+        def body(dd, i):
+            return step(dd.replace(ctrl=controls[i // k])), None
+    else:
+        def body(dd, i):
+            return step(dd), None
 
     @jax.jit
-    def run(d, u_seq):
-        def body(dd, i):
-            return step(dd.replace(ctrl=u_seq[i // k])), None
-
-        d, _ = jax.lax.scan(body, d, jnp.arange(control_steps * k))
+    def run(d):
+        d, _ = jax.lax.scan(body, d, jnp.arange(steps))
         return d.qpos
 
     t0 = time.perf_counter()
-    compiled = run.lower(batched, controls).compile()
+    compiled = run.lower(batched).compile()
     compile_s = time.perf_counter() - t0
-    _, wall = timed(lambda: compiled(batched, controls), repeats)
-    steps = control_steps * k
+    _, wall = timed(lambda: compiled(batched), repeats)
     return {"compile_s": compile_s, "wall_s": wall, "physics_steps": steps,
             "steps_per_s": steps * batch / wall}
 
@@ -263,10 +245,11 @@ def main() -> None:
         for batch in batches:
             col = colony_rate(args.robot, backend, batch, control_steps, args.iterations,
                               args.repeats)
-            raw = (raw_mjx_rate if backend == "mjx" else raw_native_rate)(
-                args.robot, batch, steps, args.repeats)
-            walk = raw_mjx_walking_rate(args.robot, batch, control_steps, args.repeats) \
-                if backend == "mjx" else None
+            if backend == "mjx":
+                raw = raw_mjx_rate(args.robot, batch, control_steps, args.repeats)
+                walk = raw_mjx_rate(args.robot, batch, control_steps, args.repeats, walking=True)
+            else:
+                raw, walk = raw_native_rate(args.robot, batch, steps, args.repeats), None
             ev = None if args.no_split else evaluate_rate(
                 args.robot, backend, batch, control_steps, args.repeats)
             row = {"backend": backend, "batch": batch, "physics_steps": steps,
