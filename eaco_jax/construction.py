@@ -49,16 +49,18 @@ def heuristic_log_eta(dist: Array) -> Array:
     return jnp.where(jnp.eye(n, dtype=bool), -jnp.inf, log_eta)
 
 
-def _packed_argmax(score: Array, ids: Array, id_bits: int) -> tuple[Array, Array]:
+def _packed_argmax(score: Array) -> tuple[Array, Array]:
     """(argmax, max > 0) of non-negative float scores along the last axis as ONE int32 max:
-    the float's bits (monotonic for non-negative floats) high, the index in the low
-    ``id_bits`` (XLA:CPU's variadic argmax reduce is several times slower)."""
+    the float's bits (monotonic for non-negative floats) high, the index in the low bits
+    (XLA:CPU's variadic argmax reduce is several times slower)."""
+    width = score.shape[-1]
+    id_bits = max(1, (width - 1).bit_length())
     bits = jax.lax.bitcast_convert_type(score, jnp.int32)
-    best = jnp.max((bits & ~((1 << id_bits) - 1)) | ids, axis=-1)
+    best = jnp.max((bits & ~((1 << id_bits) - 1)) | jnp.arange(width, dtype=jnp.int32), axis=-1)
     return best & ((1 << id_bits) - 1), (best >> id_bits) > 0
 
 
-def _sample(w: Array, u: Array, q0: Array, ids: Array, bits: int) -> tuple[Array, Array]:
+def _sample(w: Array, u: Array, q0: Array) -> tuple[Array, Array]:
     """Index chosen by the q0 rule and Eq. 2 from weights ``w`` (m, k) (tabu entries 0) with
     one uniform ``u`` per ant, and whether any weight is positive.
 
@@ -70,7 +72,7 @@ def _sample(w: Array, u: Array, q0: Array, ids: Array, bits: int) -> tuple[Array
     """
     k = w.shape[-1]
     if k <= MATMUL_CUMSUM:
-        greedy, ok = _packed_argmax(w, ids, bits)
+        greedy, ok = _packed_argmax(w)
         cum = w @ jnp.triu(jnp.ones((k, k), w.dtype))
     else:  # whole rows: exact argmax, O(k) prefix sums
         greedy, ok = jnp.argmax(w, axis=1).astype(jnp.int32), jnp.any(w > 0, axis=1)
@@ -79,7 +81,7 @@ def _sample(w: Array, u: Array, q0: Array, ids: Array, bits: int) -> tuple[Array
     target = jnp.maximum(v * cum[:, -1], jnp.finfo(w.dtype).tiny)
     sampled = jnp.minimum(jnp.sum(cum < target[:, None], axis=1, dtype=jnp.int32), k - 1)
     # float rounding could land on a zero (tabu) weight: keep the greedy choice then
-    hit = jnp.sum(jnp.where(ids == sampled[:, None], w, 0.0), axis=1)
+    hit = jnp.sum(jnp.where(jnp.arange(k) == sampled[:, None], w, 0.0), axis=1)
     sampled = jnp.where(hit > 0, sampled, greedy)
     return jnp.where(u < q0, greedy, sampled), ok
 
@@ -88,10 +90,12 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
           candidates: Array | None, wide: Array | None):
     n = weights.shape[1]
     m = row_offset.shape[0]
-    nodes = jnp.arange(n, dtype=jnp.int32)
-    node_bits = max(1, (n - 1).bit_length())
     ant_base = (jnp.arange(m, dtype=jnp.int32) * n)[:, None]
+    # On CPU the fallbacks run only on steps where some ant needs them; on accelerators a
+    # per-step branch costs more than it saves, so the whole-row search always runs there
+    # (and the wide list would add nothing).
     lazy = jax.default_backend() == "cpu"
+    wide = wide if lazy else None
 
     def row_weights(current: Array, alive: Array) -> Array:
         w = weights[row_offset + current] * alive  # (m, n), tabu nodes 0
@@ -99,55 +103,50 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
 
     def best_allowed(current: Array, alive: Array) -> Array:
         """The allowed node of largest weight; the first allowed one if all weights are 0."""
-        best, ok = _packed_argmax(row_weights(current, alive), nodes[None, :], node_bits)
+        best, ok = _packed_argmax(row_weights(current, alive))
         return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
 
     if candidates is None:
         def step(carry, u):
             current, alive = carry
             w = row_weights(current, alive)
-            nxt, ok = _sample(w, u, q0, nodes[None, :], node_bits)
+            nxt, ok = _sample(w, u, q0)
             nxt = jnp.where(ok, nxt, jnp.argmax(alive, axis=1).astype(jnp.int32))
             return (nxt, alive.at[jnp.arange(m), nxt].set(0.0, unique_indices=True)), nxt
 
         return step
 
-    k = candidates.shape[1]
     copies = weights.shape[0] // n
     lists = [jnp.concatenate([c] * copies, axis=0) for c in (candidates, wide) if c is not None]
     tables = [(c, jnp.take_along_axis(weights, c, axis=1)) for c in lists]  # gathered once
 
     def gather(table: tuple[Array, Array], row: Array, alive: Array) -> tuple[Array, Array]:
-        """Each ant's candidates ``(m, k)`` and their weights (0 when tabu)."""
+        """Each ant's candidates from ``table`` ``(m, width)`` and their weights (0 when
+        tabu)."""
         cand = table[0][row]
         w = table[1][row] * alive.reshape(-1)[ant_base + cand]
         return cand, w if factor is None else w * factor.reshape(-1)[ant_base + cand]
 
     def best_of(table: tuple[Array, Array], row: Array, alive: Array):
         cand, w = gather(table, row, alive)
-        b, ok = _packed_argmax(w, jnp.arange(w.shape[1], dtype=jnp.int32)[None, :],
-                               max(1, (w.shape[1] - 1).bit_length()))
+        b, ok = _packed_argmax(w)
         return jnp.take_along_axis(cand, b[:, None], axis=1)[:, 0], ok
 
     def step(carry, u):
         current, alive = carry
         row = row_offset + current
         cand, w = gather(tables[0], row, alive)
-        c, ok = _sample(w, u, q0, jnp.arange(k, dtype=jnp.int32)[None, :],
-                        max(1, (k - 1).bit_length()))
+        c, ok = _sample(w, u, q0)
         nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
 
         def fallback():
             """Ants whose candidates are all tabu: the allowed node of largest weight among
             the ``wide`` list, then over the whole row (ACOTSP's rule)."""
-            # (on accelerators the whole row is searched anyway: the wide list adds nothing)
-            best, ok2 = best_of(tables[1], row, alive) if wide is not None and lazy else (nxt, ok)
+            best, ok2 = best_of(tables[1], row, alive) if wide is not None else (nxt, ok)
             full = lambda: jnp.where(ok2, best, best_allowed(current, alive))  # noqa: E731
             best = jax.lax.cond(jnp.all(ok | ok2), lambda: best, full) if lazy else full()
             return jnp.where(ok, nxt, best)
 
-        # On CPU the fallbacks run only on steps where some ant needs them; on accelerators a
-        # per-step branch costs more than it saves, so they always run there.
         nxt = jax.lax.cond(jnp.all(ok), lambda: nxt, fallback) if lazy else fallback()
         return (nxt, alive.at[jnp.arange(m), nxt].set(0.0, unique_indices=True)), nxt
 
