@@ -98,14 +98,18 @@ def adaptive_weight(length: Array, pheromone_tour_length: Array) -> Array:
 
 
 def mmas_bounds(
-    best_length: Array, n: int, p_best: Array, scale: Array = 1.0
+    best_length: Array, n: int, p_best: Array, scale: Array = 1.0, avg: Array | None = None
 ) -> tuple[Array, Array]:
     """MAX-MIN limits: tau_max = scale / L_best (the steady state of a tour reinforced every
-    iteration in our units), tau_min = tau_max (1 - p^(1/n)) / ((n/2 - 1) p^(1/n)) (Stuetzle &
-    Hoos 2000: with tau at its limits the best tour is rebuilt with probability p_best)."""
+    iteration in our units), tau_min = tau_max (1 - p^(1/n)) / (avg p^(1/n)) (Stuetzle &
+    Hoos 2000: with tau at its limits the best tour is rebuilt with probability p_best).
+
+    ``avg`` is the average number of choices an ant has per step: n/2 - 1 by default, or
+    about half the candidate list on candidate lists (ACOTSP's (nn_ants + 1) / 2)."""
     tau_max = scale / best_length
     root = p_best ** (1.0 / n)
-    avg = max(n / 2.0 - 1.0, 1.0)
+    if avg is None:
+        avg = max(n / 2.0 - 1.0, 1.0)
     tau_min = tau_max * (1.0 - root) / (avg * root)
     return tau_max.astype(jnp.float32), jnp.minimum(tau_min, tau_max).astype(jnp.float32)
 
@@ -125,3 +129,13 @@ def evaporation_schedule(rho: Array, stagnation: Array, window: Array, strength:
 def reset(tau: Array, value: Array, do_reset: Array) -> Array:
     """MMAS restart: every trail back to ``value`` where ``do_reset`` is true."""
     return jnp.where(do_reset, jnp.full_like(tau, value), tau)
+
+
+def branching_factor(tau: Array, candidates: Array, lam: float = 0.05) -> Array:
+    """Average lambda-branching factor of the trails on the candidate lists, normalised so a
+    converged colony (two strong edges per node) scores 1 (Dorigo & Stuetzle 2004; ACOTSP):
+    per node, the candidates whose trail exceeds min + lam (max - min), over 2n."""
+    t = jnp.take_along_axis(tau, candidates, axis=1)
+    lo, hi = jnp.min(t, axis=1, keepdims=True), jnp.max(t, axis=1, keepdims=True)
+    count = jnp.sum(t > lo + lam * (hi - lo), dtype=jnp.int32)
+    return (count / (2.0 * tau.shape[0])).astype(jnp.float32)

@@ -50,6 +50,19 @@ def test_matches_brute_force_and_jits():
     np.testing.assert_allclose(batched, [np.mean(pairs)] * 2, atol=1e-6)
 
 
+def test_edge_counts_match_the_pairwise_table():
+    """The O(m n) count formula against the (m, m) table of shared edges, on colonies with
+    repeated, reversed and partly shared tours."""
+    rng = np.random.default_rng(3)
+    for m, n in ((2, 3), (9, 17), (40, 51)):
+        base = rng.permutation(n)
+        colony = np.stack([rng.permutation(n) if i % 3 else base for i in range(m)])
+        colony[-1] = colony[0][::-1]
+        shared = np.asarray(shared_edges(colony.astype(np.int32)))
+        pairwise = (1 - shared / n)[~np.eye(m, dtype=bool)].mean()
+        assert float(edge_diversity(colony)) == pytest.approx(pairwise, abs=1e-6)
+
+
 def test_bad_shape():
     with pytest.raises(ValueError, match="shape"):
         edge_diversity(np.arange(5))
