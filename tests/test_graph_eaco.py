@@ -107,3 +107,38 @@ def test_bad_static_config_is_a_clear_error():
         GraphEACO(local_search="3opt")
     with pytest.raises(ValueError, match="crossover"):
         GraphEACO(crossover="ox")
+
+
+def _tell_round(strat, state, key):
+    tours, state = strat.ask(key, state)
+    return strat.tell(state, tours, load_tsplib("burma14").evaluate(tours)), tours
+
+
+def test_restart_waits_for_converged_trails_and_tracks_restart_best(burma):
+    """MMAS restarts (ACOTSP): with ``restart_branching`` the trails are reset only once the
+    lambda-branching factor is below it; the restart-best record follows the iteration bests
+    and is cleared by a restart. Without the convergence test, restarts come every
+    ``restart_after`` iterations."""
+    strat = GraphEACO(num_ants=8, local_search="none")
+    base = strat.default_params(burma).replace(restart_after=jnp.float32(1.0))
+    runs = {}
+    for gate in (0.0, 1e-6, 1.00001):
+        params = base.replace(restart_branching=jnp.float32(gate))
+        state = strat.init(jax.random.key(0), burma, params)
+        rb = np.inf
+        key = jax.random.key(1)
+        for _ in range(30):
+            key, k = jax.random.split(key)
+            restarts = int(state.restarts)
+            state, tours = _tell_round(strat, state, k)
+            it_best = float(np.min(np.asarray(burma.evaluate(tours))))
+            rb = min(rb, it_best)
+            if int(state.restarts) > restarts:
+                assert float(state.restart_best_cost) == np.inf
+                assert gate == 0.0 or float(state.branching_factor) < gate
+                rb = np.inf
+            else:
+                assert float(state.restart_best_cost) == rb
+        runs[gate] = int(state.restarts)
+    assert runs[1e-6] == 0  # the factor is never below 1e-6: never converged
+    assert runs[0.0] > runs[1.00001]  # restarts every stagnant iteration without the test

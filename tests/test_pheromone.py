@@ -93,3 +93,35 @@ def test_evaporation_schedule_and_reset():
     assert np.isclose(ph.evaporation_schedule(0.2, 500.0, 50.0, 0.5), 0.1)
     assert np.all(ph.reset(TAU, 2.0, jnp.bool_(True)) == 2.0)
     assert np.all(ph.reset(TAU, 2.0, jnp.bool_(False)) == 0.5)
+
+
+def test_mmas_bounds_with_candidate_branching():
+    """ACOTSP on candidate lists: tau_min assumes (nn_ants + 1) / 2 choices, not n / 2 - 1."""
+    tmax, tmin = ph.mmas_bounds(jnp.float32(100.0), 50, jnp.float32(0.05), avg=10.0)
+    root = 0.05 ** (1 / 50)
+    np.testing.assert_allclose(tmin, 0.01 * (1 - root) / (10 * root), rtol=1e-5)
+
+
+def test_lambda_branching_factor():
+    """1 for converged trails (two strong candidate edges per node); ACOTSP's formula on
+    random trails."""
+    rng = np.random.default_rng(0)
+    n, k = 12, 5
+    tour = rng.permutation(n)
+    cands = np.stack([_cands(tour, i, k, rng) for i in range(n)])
+    tau = np.full((n, n), 0.01) + ph.edge_sum(jnp.asarray(tour[None]), jnp.ones(1), n) * 0.5
+    assert float(ph.branching_factor(jnp.asarray(tau, jnp.float32), jnp.asarray(cands))) == 1.0
+    tau = rng.random((n, n)).astype(np.float32)
+    t = np.take_along_axis(tau, cands, axis=1)
+    lo, hi = t.min(1, keepdims=True), t.max(1, keepdims=True)
+    want = (t > lo + 0.05 * (hi - lo)).sum() / (2 * n)
+    got = float(ph.branching_factor(jnp.asarray(tau), jnp.asarray(cands)))
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+def _cands(tour, i, k, rng):
+    """k candidates of node i: its two tour neighbours first, then other nodes."""
+    pos = int(np.flatnonzero(tour == i)[0])
+    nb = [tour[(pos + 1) % len(tour)], tour[pos - 1]]
+    rest = rng.permutation(np.setdiff1d(np.arange(len(tour)), nb + [i]))
+    return np.r_[nb, rest[: k - 2]].astype(np.int32)
