@@ -26,6 +26,9 @@ Array = jax.Array
 UNROLL = 2
 #: rows up to this length (candidate lists) take prefix sums as a matmul, longer ones cumsum
 MATMUL_CUMSUM = 64
+#: on CPU, steps where at most this many ants have all candidates tabu search only those
+#: ants' whole rows (more: every ant's)
+FALLBACK_ANTS = 4
 
 
 def choice_weights(tau: Array, log_eta: Array, alpha: Array, beta: Array) -> Array:
@@ -87,68 +90,65 @@ def _sample(w: Array, u: Array, q0: Array) -> tuple[Array, Array]:
 
 
 def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
-          candidates: Array | None, wide: Array | None):
+          candidates: Array | None):
     n = weights.shape[1]
     m = row_offset.shape[0]
     ant_base = (jnp.arange(m, dtype=jnp.int32) * n)[:, None]
-    # On CPU the fallbacks run only on steps where some ant needs them; on accelerators a
-    # per-step branch costs more than it saves, so the whole-row search always runs there
-    # (and the wide list would add nothing).
-    lazy = jax.default_backend() == "cpu"
-    wide = wide if lazy else None
 
-    def row_weights(current: Array, alive: Array) -> Array:
-        w = weights[row_offset + current] * alive  # (m, n), tabu nodes 0
-        return w if factor is None else w * factor
-
-    def best_allowed(current: Array, alive: Array) -> Array:
-        """The allowed node of largest weight; the first allowed one if all weights are 0."""
-        best, ok = _packed_argmax(row_weights(current, alive))
+    def best_allowed(ants: Array, current: Array, alive: Array) -> Array:
+        """For ants ``ants`` (at ``current``, tabu masks ``alive``): the allowed node of
+        largest weight, the first allowed one if all their weights are 0."""
+        w = weights[row_offset[ants] + current] * alive
+        w = w if factor is None else w * factor[ants]
+        best, ok = _packed_argmax(w)
         return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
 
+    every = jnp.arange(m, dtype=jnp.int32)
     if candidates is None:
         def step(carry, u):
             current, alive = carry
-            w = row_weights(current, alive)
-            nxt, ok = _sample(w, u, q0)
+            w = weights[row_offset + current] * alive  # (m, n), tabu nodes 0
+            nxt, ok = _sample(w if factor is None else w * factor, u, q0)
             nxt = jnp.where(ok, nxt, jnp.argmax(alive, axis=1).astype(jnp.int32))
-            return (nxt, alive.at[jnp.arange(m), nxt].set(0.0, unique_indices=True)), nxt
+            return (nxt, alive.at[every, nxt].set(0.0, unique_indices=True)), nxt
 
         return step
 
     copies = weights.shape[0] // n
-    lists = [jnp.concatenate([c] * copies, axis=0) for c in (candidates, wide) if c is not None]
-    tables = [(c, jnp.take_along_axis(weights, c, axis=1)) for c in lists]  # gathered once
+    cands = jnp.concatenate([candidates] * copies, axis=0)
+    cand_w = jnp.take_along_axis(weights, cands, axis=1)  # gathered once per construction
+    # On CPU the whole-row fallback runs only on steps where some ant needs it, and for only
+    # those ants when there are few; on accelerators a per-step branch costs more than it
+    # saves, so the whole-row search runs for every ant on every step there.
+    lazy = jax.default_backend() == "cpu"
 
-    def gather(table: tuple[Array, Array], row: Array, alive: Array) -> tuple[Array, Array]:
-        """Each ant's candidates from ``table`` ``(m, width)`` and their weights (0 when
-        tabu)."""
-        cand = table[0][row]
-        w = table[1][row] * alive.reshape(-1)[ant_base + cand]
-        return cand, w if factor is None else w * factor.reshape(-1)[ant_base + cand]
-
-    def best_of(table: tuple[Array, Array], row: Array, alive: Array):
-        cand, w = gather(table, row, alive)
-        b, ok = _packed_argmax(w)
-        return jnp.take_along_axis(cand, b[:, None], axis=1)[:, 0], ok
+    def fallback(current: Array, alive: Array, nxt: Array, ok: Array) -> Array:
+        """Ants whose candidates are all tabu take the allowed node of largest weight in
+        their whole row (ACOTSP's rule): searched for those ants alone while there are at
+        most FALLBACK_ANTS of them, for every ant otherwise."""
+        everyone = lambda: jnp.where(ok, nxt, best_allowed(every, current, alive))  # noqa: E731
+        if not lazy:
+            return everyone()
+        pending = ~ok
+        ants = jnp.nonzero(pending, size=FALLBACK_ANTS, fill_value=0)[0]
+        best = best_allowed(ants, current[ants], alive[ants])
+        few = lambda: nxt.at[ants].set(jnp.where(pending[ants], best, nxt[ants]))  # noqa: E731
+        return jax.lax.cond(jnp.sum(pending) <= FALLBACK_ANTS, few, everyone)
 
     def step(carry, u):
         current, alive = carry
         row = row_offset + current
-        cand, w = gather(tables[0], row, alive)
+        cand = cands[row]
+        w = cand_w[row] * alive.reshape(-1)[ant_base + cand]  # (m, k), tabu candidates 0
+        w = w if factor is None else w * factor.reshape(-1)[ant_base + cand]
         c, ok = _sample(w, u, q0)
         nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
-
-        def fallback():
-            """Ants whose candidates are all tabu: the allowed node of largest weight among
-            the ``wide`` list, then over the whole row (ACOTSP's rule)."""
-            best, ok2 = best_of(tables[1], row, alive) if wide is not None else (nxt, ok)
-            full = lambda: jnp.where(ok2, best, best_allowed(current, alive))  # noqa: E731
-            best = jax.lax.cond(jnp.all(ok | ok2), lambda: best, full) if lazy else full()
-            return jnp.where(ok, nxt, best)
-
-        nxt = jax.lax.cond(jnp.all(ok), lambda: nxt, fallback) if lazy else fallback()
-        return (nxt, alive.at[jnp.arange(m), nxt].set(0.0, unique_indices=True)), nxt
+        if lazy:
+            nxt = jax.lax.cond(jnp.all(ok), lambda: nxt,
+                               lambda: fallback(current, alive, nxt, ok))
+        else:
+            nxt = fallback(current, alive, nxt, ok)
+        return (nxt, alive.at[every, nxt].set(0.0, unique_indices=True)), nxt
 
     return step
 
@@ -161,7 +161,6 @@ def construct_tours(
     row_offset: Array | None = None,
     factor: Array | None = None,
     candidates: Array | None = None,
-    wide: Array | None = None,
 ) -> Array:
     """Build one tour per ant.
 
@@ -177,10 +176,6 @@ def construct_tours(
         the q0 rule act on the k candidates that are not tabu, and an ant whose candidates are
         all tabu moves to the allowed node of largest weight (as ACOTSP does); the cost of a
         step drops from O(m n) sampling to O(m k). Without them Eq. 2 runs over all n nodes.
-      wide: optional (n, K) longer candidate lists (K > k nearest neighbours): an ant whose
-        candidates are all tabu takes the allowed node of largest weight among these first,
-        and searches its whole row only when they are all tabu too (the same choice unless a
-        node outside the K nearest outweighs every allowed node inside them).
 
     Returns:
       (m, n) int32 tours, each a permutation of 0..n-1 starting at ``starts``.
@@ -195,9 +190,7 @@ def construct_tours(
     q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
     alive = jnp.where(jnp.arange(n)[None, :] == starts[:, None], 0.0, 1.0)
     uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
-    if wide is not None and candidates is None:
-        raise ValueError("a wide fallback list needs candidate lists")
-    step = _step(weights, row_offset.astype(jnp.int32), q0, factor, candidates, wide)
+    step = _step(weights, row_offset.astype(jnp.int32), q0, factor, candidates)
     _, path = jax.lax.scan(step, (starts, alive), uniforms, unroll=UNROLL)
     return jnp.concatenate([starts[:, None], path.T], axis=1)
 

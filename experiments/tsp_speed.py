@@ -7,7 +7,15 @@ ants, one thread, measured on the lead's machine: eil51 0.28, kroA100 0.69, a280
 Two colonies are timed: ``core`` (construction + MMAS pheromone rules, what ACOTSP's MMAS does)
 and ``eaco`` (the default EACO with ERX crossover and inversion mutation on top).
 
+This machine's speed drifts by up to 1.5x from minute to minute (a shared host), so a fixed
+reference time is only a rough yardstick. ``--acotsp PATH`` (an ACOTSP binary built
+elsewhere; nothing of it is in this repository) times ACOTSP in the same process slot:
+``--rounds`` alternations of our chunks and a ``--acotsp-seconds`` ACOTSP run on the same
+instance, so both see the same machine; its ms per iteration is the run time over the last
+iteration it reports (every 100). Pin the run to one core (``taskset -c 1``).
+
     python experiments/tsp_speed.py                      # 40 ants, eil51 kroA100 a280
+    taskset -c 1 python experiments/tsp_speed.py --variants core --acotsp ~/ACOTSP/acotsp
     python experiments/tsp_speed.py --ants 1024 --instances pcb442 --variants core   # GPU
 """
 
@@ -16,7 +24,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import statistics
+import subprocess
 import time
 from pathlib import Path
 
@@ -24,8 +34,8 @@ ACOTSP_MS = {"eil51": 0.28, "kroA100": 0.69, "a280": 3.8}
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_speed.json"
 
 
-def time_colony(problem, strategy, chunk: int, chunks: int) -> dict:
-    """Compile one chunk of ``chunk`` iterations, run ``chunks`` of them, median ms/iteration."""
+def compile_colony(problem, strategy, chunk: int):
+    """(compiled chunk function, warmed-up state, compile seconds)."""
     import jax
 
     from eaco_jax.minimize import init_states, make_chunk_fn
@@ -36,12 +46,45 @@ def time_colony(problem, strategy, chunk: int, chunks: int) -> dict:
     compile_s = time.perf_counter() - t0
     state, _ = fn(problem, state)  # warm-up
     jax.block_until_ready(state)
+    return fn, state, compile_s
+
+
+def time_chunks(problem, fn, state, chunk: int, chunks: int):
+    """Seconds per iteration of ``chunks`` calls; the state after them."""
+    import jax
+
     per_iter = []
     for _ in range(chunks):
         t0 = time.perf_counter()
         state, _ = fn(problem, state)
         jax.block_until_ready(state)
         per_iter.append((time.perf_counter() - t0) / chunk)
+    return per_iter, state
+
+
+def acotsp_ms(binary: Path, tsp_file: Path, seconds: float) -> float:
+    """ACOTSP's MMAS, 40 ants, no local search, one run of ``seconds``: ms per iteration."""
+    out = subprocess.run(
+        [str(binary), "-i", str(tsp_file), "--mmas", "-m", "40", "-l", "0", "-r", "1",
+         "-t", str(seconds), "--seed", "1", "--quiet"],
+        capture_output=True, text=True, check=True).stdout
+    done = [int(x) for x in re.findall(r"iteration (\d+), b-fac", out)]
+    if not done:
+        raise RuntimeError(f"no iteration count in ACOTSP's output:\n{out[-500:]}")
+    return 1e3 * seconds / max(done)
+
+
+def time_colony(problem, strategy, chunk: int, chunks: int, rounds: int = 1,
+                acotsp: Path | None = None, acotsp_seconds: float = 3.0) -> dict:
+    """Median ms/iteration over ``rounds`` x ``chunks`` compiled chunks of ``chunk``
+    iterations; with ``acotsp``, an ACOTSP run after each round."""
+    fn, state, compile_s = compile_colony(problem, strategy, chunk)
+    per_iter, aco = [], []
+    for _ in range(rounds):
+        times, state = time_chunks(problem, fn, state, chunk, chunks)
+        per_iter += times
+        if acotsp is not None:
+            aco.append(acotsp_ms(acotsp, problem_file(problem.name), acotsp_seconds))
     ms = 1e3 * statistics.median(per_iter)
     return {
         "ms_per_iteration": ms,
@@ -49,7 +92,16 @@ def time_colony(problem, strategy, chunk: int, chunks: int) -> dict:
         "tours_per_second": strategy.num_ants / (ms / 1e3),
         "compile_seconds": compile_s,
         "best_length": float(state.best_cost),
+        **({"acotsp_measured_ms": statistics.median(aco), "acotsp_measured_ms_min": min(aco),
+            "acotsp_runs_ms": aco} if aco else {}),
     }
+
+
+def problem_file(name: str) -> Path:
+    """The bundled .tsp file of an instance (what ACOTSP reads)."""
+    from eaco_jax.problems.tsp import DATA_DIR
+
+    return DATA_DIR / f"{name}.tsp"
 
 
 def main() -> None:
@@ -59,6 +111,10 @@ def main() -> None:
     ap.add_argument("--variants", nargs="+", default=["core", "eaco"], choices=["core", "eaco"])
     ap.add_argument("--chunk", type=int, default=50, help="iterations per compiled call")
     ap.add_argument("--chunks", type=int, default=10, help="timed calls (median taken)")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="alternations of timed chunks and ACOTSP runs")
+    ap.add_argument("--acotsp", type=Path, default=None, help="ACOTSP binary to time alongside")
+    ap.add_argument("--acotsp-seconds", type=float, default=3.0)
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
 
@@ -74,18 +130,26 @@ def main() -> None:
         for variant in args.variants:
             ga = {} if variant == "eaco" else {"crossover": "none", "mutation": "none"}
             strategy = GraphEACO(num_ants=args.ants, local_search="none", **ga)
-            r = time_colony(problem, strategy, args.chunk, args.chunks)
+            aco = args.acotsp if args.ants == 40 and variant == "core" else None
+            r = time_colony(problem, strategy, args.chunk, args.chunks, args.rounds, aco,
+                            args.acotsp_seconds)
             ref = ACOTSP_MS.get(name) if args.ants == 40 else None
             r.update(instance=name, n=problem.n, variant=variant, ants=args.ants,
                      acotsp_ms=ref, ratio_to_acotsp=None if ref is None else
                      r["ms_per_iteration"] / ref)
+            if "acotsp_measured_ms" in r:
+                r["ratio_to_acotsp_measured"] = r["ms_per_iteration"] / r["acotsp_measured_ms"]
             rows.append(r)
             print(f"{name:>8} {variant:>5} ants={args.ants:<5} {r['ms_per_iteration']:9.2f} ms/it"
-                  f"  {r['tours_per_second']:10.0f} tours/s"
+                  f" (min {r['ms_per_iteration_min']:.2f})  {r['tours_per_second']:10.0f} tours/s"
                   + (f"  ACOTSP {ref:.2f} ms  ratio {r['ratio_to_acotsp']:.1f}x" if ref else "")
+                  + (f"  | ACOTSP here {r['acotsp_measured_ms']:.2f} ms (min "
+                     f"{r['acotsp_measured_ms_min']:.2f})  ratio "
+                     f"{r['ratio_to_acotsp_measured']:.2f}x" if "acotsp_measured_ms" in r else "")
                   + f"  (compile {r['compile_seconds']:.1f} s)", flush=True)
     record = {"device": device, "cpu_count": os.cpu_count(), "chunk": args.chunk,
-              "chunks": args.chunks, "rows": rows}
+              "chunks": args.chunks, "rounds": args.rounds,
+              "acotsp_seconds": args.acotsp_seconds if args.acotsp else None, "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(record, indent=2) + "\n")
     print(f"wrote {args.out}")

@@ -125,31 +125,35 @@ def test_candidate_step_samples_only_allowed_candidates_and_falls_back_to_best()
     assert _is_perm(tours)
 
 
-@pytest.mark.parametrize("wide_k", [0, 7])
-def test_greedy_on_candidates_falls_back_to_wide_list_then_whole_row(wide_k):
+@pytest.mark.parametrize("starts", [[0, 9], list(range(14))])
+@pytest.mark.parametrize("chaos", [False, True])
+def test_greedy_on_candidates_falls_back_to_whole_row(starts, chaos):
     """q0 = 1 with candidate lists: the best allowed candidate; when all are tabu, the best
-    allowed node of the ``wide`` list, then of the whole row (checked against numpy)."""
+    allowed node of the whole row (checked against numpy). 14 ants have more than
+    FALLBACK_ANTS ants to rescue at once on some steps, two never do; the chaos factor
+    scales the weights in both paths."""
     n = 14
     d, tau, _ = _instance(n=n, seed=7)
     order = np.argsort(np.where(np.eye(n), np.inf, np.asarray(d)), axis=1)
-    nbr, wide = order[:, :3].astype(np.int32), order[:, :wide_k].astype(np.int32)
+    nbr = order[:, :3].astype(np.int32)
     w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
-    wn = np.asarray(w, np.float64)
+    m = len(starts)
+    factor = (np.random.default_rng(1).uniform(0.5, 1.5, (m, n)).astype(np.float32)
+              if chaos else np.ones((m, n), np.float32))
     tours = np.asarray(construct_tours(
-        jax.random.key(7), w, jnp.arange(n, dtype=jnp.int32), q0=1.0,
-        candidates=jnp.asarray(nbr), wide=jnp.asarray(wide) if wide_k else None))
-    for s in range(n):
+        jax.random.key(7), w, jnp.asarray(starts, jnp.int32), q0=1.0,
+        factor=jnp.asarray(factor) if chaos else None, candidates=jnp.asarray(nbr)))
+    wn = np.asarray(w, np.float32)
+    for a, s in enumerate(starts):
         tour, seen = [s], {s}
         for _ in range(n - 1):
             c = tour[-1]
-            for pool in (nbr[c], wide[c], np.arange(n)):
-                allowed = [j for j in pool if j not in seen]
-                if allowed:
-                    break
-            nxt = max(allowed, key=lambda j: wn[c, j])
+            allowed = [j for j in nbr[c] if j not in seen] or [
+                j for j in range(n) if j not in seen]
+            nxt = max(allowed, key=lambda j: wn[c, j] * factor[a, j])
             tour.append(nxt)
             seen.add(nxt)
-        assert tours[s].tolist() == tour
+        assert tours[a].tolist() == tour
 
 
 def test_row_offset_lets_one_ant_use_other_weights():

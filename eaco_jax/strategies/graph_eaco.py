@@ -117,7 +117,6 @@ class GraphState(State):
     log_eta: Array  # (n, n) heuristic cache log(1/d)
     dist: Array  # (n, n)
     neighbors: Array  # (n, k) candidate lists for construction and local search
-    wide_neighbors: Array  # (n, K) longer lists for the construction's fallback (K may be 0)
     chaos: Array  # (m, n) logistic-map variables
     tau_min: Array
     tau_max: Array
@@ -153,9 +152,6 @@ class GraphEACO(Strategy):
     max_ls_moves: int | None = None
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
-    #: an ant whose candidates are all tabu picks the best allowed node among this many
-    #: nearest before searching its whole row (0: straight to the whole row)
-    wide_candidates: int = 128
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -165,8 +161,6 @@ class GraphEACO(Strategy):
                 object.__setattr__(self, name, on if with_ls else "none")
         if self.num_ants < 1:
             raise ValueError(f"num_ants must be >= 1, got {self.num_ants}")
-        if self.wide_candidates < 0:
-            raise ValueError(f"wide_candidates must be >= 0, got {self.wide_candidates}")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
@@ -221,11 +215,6 @@ class GraphEACO(Strategy):
                 f"graph problem needs an (n, n) distance matrix, n >= 3; got {dist.shape}")
         neighbors = jnp.asarray(problem.neighbors, jnp.int32)
         log_eta = heuristic_log_eta(dist)
-        wide = min(self.wide_candidates, n - 1) if self.candidate_lists else 0
-        wide = 0 if wide <= neighbors.shape[1] else wide
-        # the K nearest other nodes (self excluded even where distances are 0)
-        wide_neighbors = jax.lax.top_k(-jnp.where(jnp.eye(n, dtype=bool), jnp.inf, dist),
-                                       wide)[1].astype(jnp.int32)
         k_chaos, key = jax.random.split(key)
         # nearest-neighbour tour from node 0: greedy on eta alone
         nn_weights = choice_weights(jnp.ones_like(dist), log_eta, _f(0.0), _f(1.0))
@@ -241,7 +230,6 @@ class GraphEACO(Strategy):
             log_eta=log_eta,
             dist=dist,
             neighbors=neighbors,
-            wide_neighbors=wide_neighbors,
             chaos=chaos.logistic_init(k_chaos, (self.num_ants, n)),
             tau_min=tau_min,
             tau_max=tau_max,
@@ -291,11 +279,9 @@ class GraphEACO(Strategy):
         offset = jnp.concatenate([jnp.zeros((m,), jnp.int32), jnp.full((1,), n, jnp.int32)])
         q0 = jnp.concatenate([jnp.full((m,), p.q0), jnp.ones((1,))])
         cands = state.neighbors if self.candidate_lists else None
-        wide = state.wide_neighbors if state.wide_neighbors.shape[1] else None
 
         def build(chaos_factor):
-            return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands,
-                                   wide)
+            return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands)
 
         # without chaos the factor is all ones: skip its per-step gathers and products
         built = jax.lax.cond(p.use_chaos > 0.5, lambda: build(factor), lambda: build(None))
