@@ -128,7 +128,8 @@ def main() -> None:
     for name in args.instances:
         problem = load_tsplib(name)
         for variant in args.variants:
-            ga = {} if variant == "eaco" else {"crossover": "none", "mutation": "none"}
+            ga = ({"crossover": "erx", "mutation": "inversion"} if variant == "eaco"
+                  else {"crossover": "none", "mutation": "none"})
             strategy = GraphEACO(num_ants=args.ants, local_search="none", **ga)
             aco = args.acotsp if args.ants == 40 and variant == "core" else None
             r = time_colony(problem, strategy, args.chunk, args.chunks, args.rounds, aco,
