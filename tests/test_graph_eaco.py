@@ -142,3 +142,11 @@ def test_restart_waits_for_converged_trails_and_tracks_restart_best(burma):
         runs[gate] = int(state.restarts)
     assert runs[1e-6] == 0  # the factor is never below 1e-6: never converged
     assert runs[0.0] > runs[1.00001]  # restarts every stagnant iteration without the test
+
+
+def test_genetic_operators_auto_follow_local_search():
+    """"auto" ERX / inversion: on with 2-opt, off without; an explicit choice is kept."""
+    assert (GraphEACO().crossover, GraphEACO().mutation) == ("erx", "inversion")
+    bare = GraphEACO(local_search="none")
+    assert (bare.crossover, bare.mutation) == ("none", "none")
+    assert GraphEACO(local_search="none", crossover="pmx").crossover == "pmx"
