@@ -20,6 +20,13 @@ from pathlib import Path
 RESULTS = Path(__file__).resolve().parent / "results" / "acotsp_quality.json"
 
 
+def tsp_file(name: str) -> Path:
+    """The bundled .tsp file of an instance (what ACOTSP reads)."""
+    from eaco_jax.problems.tsp import DATA_DIR
+
+    return DATA_DIR / f"{name}.tsp"
+
+
 def run_acotsp(binary: Path, tsp_file: Path, seconds: float, seed: int) -> dict:
     """One ACOTSP try: best length, the iteration and time it was found at, iterations run."""
     out = subprocess.run(
@@ -44,12 +51,12 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
 
-    from eaco_jax.problems.tsp import DATA_DIR, load_tsplib
+    from eaco_jax.problems.tsp import load_tsplib
 
     rows = []
     for name in args.instances:
         optimum = load_tsplib(name).optimum
-        runs = [run_acotsp(args.binary, DATA_DIR / f"{name}.tsp", args.seconds, s)
+        runs = [run_acotsp(args.binary, tsp_file(name), args.seconds, s)
                 for s in range(1, args.seeds + 1)]
         gaps = [100.0 * (r["length"] / optimum - 1.0) for r in runs]
         rows.append({"instance": name, "optimum": optimum, "seconds": args.seconds,

@@ -24,9 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import statistics
-import subprocess
 import time
 from pathlib import Path
 
@@ -62,16 +60,14 @@ def time_chunks(problem, fn, state, chunk: int, chunks: int):
     return per_iter, state
 
 
-def acotsp_ms(binary: Path, tsp_file: Path, seconds: float) -> float:
+def acotsp_ms(binary: Path, name: str, seconds: float) -> float:
     """ACOTSP's MMAS, 40 ants, no local search, one run of ``seconds``: ms per iteration."""
-    out = subprocess.run(
-        [str(binary), "-i", str(tsp_file), "--mmas", "-m", "40", "-l", "0", "-r", "1",
-         "-t", str(seconds), "--seed", "1", "--quiet"],
-        capture_output=True, text=True, check=True).stdout
-    done = [int(x) for x in re.findall(r"iteration (\d+), b-fac", out)]
+    from acotsp_quality import run_acotsp, tsp_file  # sibling script in experiments/
+
+    done = run_acotsp(binary, tsp_file(name), seconds, seed=1)["iterations"]
     if not done:
-        raise RuntimeError(f"no iteration count in ACOTSP's output:\n{out[-500:]}")
-    return 1e3 * seconds / max(done)
+        raise RuntimeError("ACOTSP reported no iteration count")
+    return 1e3 * seconds / done
 
 
 def time_colony(problem, strategy, chunk: int, chunks: int, rounds: int = 1,
@@ -84,7 +80,7 @@ def time_colony(problem, strategy, chunk: int, chunks: int, rounds: int = 1,
         times, state = time_chunks(problem, fn, state, chunk, chunks)
         per_iter += times
         if acotsp is not None:
-            aco.append(acotsp_ms(acotsp, problem_file(problem.name), acotsp_seconds))
+            aco.append(acotsp_ms(acotsp, problem.name, acotsp_seconds))
     ms = 1e3 * statistics.median(per_iter)
     return {
         "ms_per_iteration": ms,
@@ -95,13 +91,6 @@ def time_colony(problem, strategy, chunk: int, chunks: int, rounds: int = 1,
         **({"acotsp_measured_ms": statistics.median(aco), "acotsp_measured_ms_min": min(aco),
             "acotsp_runs_ms": aco} if aco else {}),
     }
-
-
-def problem_file(name: str) -> Path:
-    """The bundled .tsp file of an instance (what ACOTSP reads)."""
-    from eaco_jax.problems.tsp import DATA_DIR
-
-    return DATA_DIR / f"{name}.tsp"
 
 
 def main() -> None:
