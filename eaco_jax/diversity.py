@@ -13,23 +13,6 @@ import jax.numpy as jnp
 Array = jax.Array
 
 
-def successors(tours: Array) -> tuple[Array, Array]:
-    """City-indexed successor and predecessor arrays ``(m, n)`` of each tour."""
-    m, n = tours.shape
-    rows = jnp.arange(m)[:, None]
-    succ = jnp.zeros((m, n), jnp.int32).at[rows, tours].set(jnp.roll(tours, -1, axis=1))
-    pred = jnp.zeros((m, n), jnp.int32).at[rows, tours].set(jnp.roll(tours, 1, axis=1))
-    return succ, pred
-
-
-def shared_edges(tours: Array) -> Array:
-    """``(m, m)`` int32: number of undirected edges each pair of tours has in common."""
-    succ, pred = successors(jnp.asarray(tours, jnp.int32))
-    # edge (c, succ_a[c]) of tour a is in tour b iff succ_b[c] or pred_b[c] equals succ_a[c]
-    same = (succ[:, None, :] == succ[None, :, :]) | (succ[:, None, :] == pred[None, :, :])
-    return same.sum(-1, dtype=jnp.int32)
-
-
 @jax.jit
 def edge_diversity(tours: Array) -> Array:
     """Mean pairwise edge distance ``1 - shared / n`` of tours ``(m, n)``: float32 in [0, 1].

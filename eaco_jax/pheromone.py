@@ -98,18 +98,18 @@ def adaptive_weight(length: Array, pheromone_tour_length: Array) -> Array:
 
 
 def mmas_bounds(
-    best_length: Array, n: int, p_best: Array, scale: Array = 1.0, avg: Array | None = None
+    best_length: Array, n: int, p_best: Array, scale: Array = 1.0, avg: Array | float = 0.0
 ) -> tuple[Array, Array]:
     """MAX-MIN limits: tau_max = scale / L_best (the steady state of a tour reinforced every
     iteration in our units), tau_min = tau_max (1 - p^(1/n)) / (avg p^(1/n)) (Stuetzle &
     Hoos 2000: with tau at its limits the best tour is rebuilt with probability p_best).
 
-    ``avg`` is the average number of choices an ant has per step: n/2 - 1 by default, or
-    about half the candidate list on candidate lists (ACOTSP's (nn_ants + 1) / 2)."""
+    ``avg`` is the average number of choices an ant has per step: n/2 - 1 when it is <= 0
+    (the default), or about half the candidate list on candidate lists (ACOTSP's
+    (nn_ants + 1) / 2)."""
     tau_max = scale / best_length
     root = p_best ** (1.0 / n)
-    if avg is None:
-        avg = max(n / 2.0 - 1.0, 1.0)
+    avg = jnp.where(jnp.asarray(avg) > 0, avg, max(n / 2.0 - 1.0, 1.0))
     tau_min = tau_max * (1.0 - root) / (avg * root)
     return tau_max.astype(jnp.float32), jnp.minimum(tau_min, tau_max).astype(jnp.float32)
 

@@ -224,9 +224,10 @@ class GraphEACO(Strategy):
         tau0 = jnp.where(
             params.init_at_tau_max > 0.5, tau_max, pheromone.initial_tau(n, nn_length)
         )
+        tau = jnp.full((n, n), tau0, jnp.float32)
         return GraphState(
             **base_fields(key, params, jnp.arange(n, dtype=jnp.int32)),
-            tau=jnp.full((n, n), tau0, jnp.float32),
+            tau=tau,
             log_eta=log_eta,
             dist=dist,
             neighbors=neighbors,
@@ -241,7 +242,7 @@ class GraphEACO(Strategy):
             since_improvement=jnp.zeros((), jnp.int32),
             restart_best_solution=jnp.arange(n, dtype=jnp.int32),
             restart_best_cost=jnp.asarray(jnp.inf, jnp.float32),
-            branching_factor=_f(float(neighbors.shape[1]) / 2.0),
+            branching_factor=pheromone.branching_factor(tau, neighbors),
             restarts=jnp.zeros((), jnp.int32),
             nn_length=nn_length,
         )
@@ -250,8 +251,7 @@ class GraphEACO(Strategy):
         """MMAS limits for the rules that are on (tau_max = steady state of the best tour)."""
         scale = p.use_global_update + p.use_elitist * p.q * (p.sigma + 1.0)
         scale = jnp.maximum(scale, 1.0)
-        avg = jnp.where(p.branching > 0, p.branching, max(n / 2.0 - 1.0, 1.0))
-        tau_max, tau_min = pheromone.mmas_bounds(best_length, n, p.p_best, scale, avg)
+        tau_max, tau_min = pheromone.mmas_bounds(best_length, n, p.p_best, scale, p.branching)
         on = p.use_bounds > 0.5
         return jnp.where(on, tau_max, jnp.inf), jnp.where(on, tau_min, 1e-30)
 
