@@ -5,7 +5,8 @@ Measures ms per iteration (median over several compiled chunks) and tours per se
 ants, one thread, measured on the lead's machine: eil51 0.28, kroA100 0.69, a280 3.8 ms).
 
 Two colonies are timed: ``core`` (construction + MMAS pheromone rules, what ACOTSP's MMAS does)
-and ``eaco`` (the default EACO with ERX crossover and inversion mutation on top).
+and ``eaco`` (ERX crossover and inversion mutation on top, as the default EACO runs with 2-opt;
+without 2-opt its defaults leave them off).
 
 This machine's speed drifts by up to 1.5x from minute to minute (a shared host), so a fixed
 reference time is only a rough yardstick. ``--acotsp PATH`` (an ACOTSP binary built
