@@ -7,9 +7,9 @@ Quick start::
 """
 
 from eaco_jax import problems
-from eaco_jax.minimize import Result, minimize
-from eaco_jax.problem import Evaluation, ProblemError
-from eaco_jax.strategy import State, Strategy
+from eaco_jax.driver.minimize import Result, minimize
+from eaco_jax.problems.base import Evaluation, ProblemError
+from eaco_jax.strategies.base import State, Strategy
 
 __version__ = "0.1.0"
 

@@ -37,7 +37,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.minimize import Result, minimize_batch
+from eaco_jax.driver.minimize import Result, minimize_batch
 
 
 @dataclasses.dataclass

@@ -22,7 +22,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from eaco_jax.minimize import init_states, iteration_step
+from eaco_jax.driver.minimize import init_states, iteration_step
 from eaco_jax.problems import cec2006, float64
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 

@@ -52,9 +52,9 @@ import jax.numpy as jnp
 import numpy as np
 from eaco_jax.robots import load_robot
 
+from eaco_jax.driver.minimize import make_chunk_fn
 from eaco_jax.gait.rollout_mjx import mjx_model
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
-from eaco_jax.minimize import make_chunk_fn
 from eaco_jax.problems.gait import make_gait_problem
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 

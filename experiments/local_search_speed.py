@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.local_search import two_opt
+from eaco_jax.ops.local_search import two_opt
 from eaco_jax.problems import load_tsplib
 
 RESULTS = Path(__file__).resolve().parent / "results" / "local_search_speed.json"

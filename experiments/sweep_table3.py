@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 from table3_g01 import SETTINGS  # noqa: E402  (same folder: the paper's Table 3 rows)
 
 from eaco_jax.cli.common import write_json  # noqa: E402
-from eaco_jax.minimize import minimize, minimize_batch  # noqa: E402
+from eaco_jax.driver.minimize import minimize, minimize_batch  # noqa: E402
 from eaco_jax.sweep import _build_constrained, with_params  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results" / "sweep_table3.json"

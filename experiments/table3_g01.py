@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.minimize import iteration_step
+from eaco_jax.driver.minimize import iteration_step
 from eaco_jax.problems import cec2006, float64
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO, ContinuousParams
 

@@ -33,7 +33,7 @@ def run_group(problem, strategy, seeds, *, iterations=None, time_limit=None, chu
     compilation) would be exceeded by the next chunk. Returns lengths, iterations, timings."""
     import jax
 
-    from eaco_jax.minimize import init_states, make_chunk_fn
+    from eaco_jax.driver.minimize import init_states, make_chunk_fn
     from eaco_jax.problems.tsp import tour_length
 
     batched = len(seeds) > 1

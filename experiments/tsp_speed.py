@@ -37,7 +37,7 @@ def compile_colony(problem, strategy, chunk: int):
     """(compiled chunk function, warmed-up state, compile seconds)."""
     import jax
 
-    from eaco_jax.minimize import init_states, make_chunk_fn
+    from eaco_jax.driver.minimize import init_states, make_chunk_fn
 
     state = init_states(strategy, problem, [0], None)
     t0 = time.perf_counter()

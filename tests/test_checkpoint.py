@@ -12,7 +12,7 @@ from test_driver import RandomSearch, Sphere
 
 import eaco_jax
 import eaco_jax as ea
-from eaco_jax.checkpoint import CheckpointError, latest_step, read_meta
+from eaco_jax.driver.checkpoint import CheckpointError, latest_step, read_meta
 
 
 def _problem(scale=1.0):
@@ -222,7 +222,7 @@ def test_eaco_resume_cli_continues_stored_command(tmp_path):
 def test_problem_hash_ignores_static_functions_but_not_leaves():
     from flax import struct
 
-    from eaco_jax.checkpoint import tree_hash
+    from eaco_jax.driver.checkpoint import tree_hash
 
     @struct.dataclass
     class WithFn:

@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from eaco_jax.problem import ProblemError
 from eaco_jax.problems import ConstrainedProblem, cec2006, float64
+from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.cec2006 import BUILDERS
 
 

@@ -4,7 +4,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from eaco_jax import constraints as ch
+from eaco_jax.ops import constraints as ch
 from eaco_jax.problems import ConstrainedProblem
 from eaco_jax.problems.constrained import violation_of
 

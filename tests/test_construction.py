@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from eaco_jax import chaos
-from eaco_jax.construction import (
+from eaco_jax.ops import chaos
+from eaco_jax.ops.construction import (
     choice_weights,
     construct_tours,
     greedy_tour,

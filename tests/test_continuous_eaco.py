@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import eaco_jax
-from eaco_jax.minimize import minimize
+from eaco_jax.driver.minimize import minimize
 from eaco_jax.problems import ConstrainedProblem, cec2006, float64, rastrigin
 from eaco_jax.strategies import ContinuousEACO, ContinuousParams
 

@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from eaco_jax.diversity import edge_diversity
+from eaco_jax.ops.diversity import edge_diversity
 
 
 def _edges(t) -> set[frozenset[int]]:

@@ -8,8 +8,8 @@ import numpy as np
 from flax import struct
 
 import eaco_jax as ea
-from eaco_jax.problem import Evaluation
-from eaco_jax.strategy import State, Strategy, base_fields, record_best
+from eaco_jax.problems.base import Evaluation
+from eaco_jax.strategies.base import State, Strategy, base_fields, record_best
 
 
 @struct.dataclass

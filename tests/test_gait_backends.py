@@ -14,7 +14,7 @@ import pytest
 
 from eaco_jax.gait import walk_engine as we
 from eaco_jax.gait.fitness import gait_fitness
-from eaco_jax.problem import ProblemError
+from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.gait import make_gait_problem
 
 HORIZON = 1.0

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import eaco_jax as ea
-from eaco_jax import pheromone
+from eaco_jax.ops import pheromone
 from eaco_jax.problems.tsp import load_tsplib
 from eaco_jax.strategies import GraphEACO
 

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from eaco_jax.local_search import two_opt
+from eaco_jax.ops.local_search import two_opt
 from eaco_jax.problems import TSP, load_tsplib
 
 

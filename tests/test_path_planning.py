@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import eaco_jax as ea
-from eaco_jax.problem import ProblemError
+from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.path_planning import GOAL, START, PathPlanning, random_environment
 from eaco_jax.strategies.path_eaco import PathEACO, common_node_crossover, shortcut
 

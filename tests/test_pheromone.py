@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax import pheromone as ph
+from eaco_jax.ops import pheromone as ph
 
 T1 = jnp.array([[0, 1, 2, 3]], jnp.int32)  # edges 01 12 23 30
 T2 = jnp.array([[0, 2, 1, 3]], jnp.int32)  # edges 02 21 13 30

@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.real_ops import (
+from eaco_jax.ops.real_ops import (
     laplace_crossover,
     laplace_crossover_sample,
     power_mutation,

@@ -9,7 +9,7 @@ from test_driver import RandomSearch, Sphere
 
 import eaco_jax as ea
 from eaco_jax import sweep as sw
-from eaco_jax.minimize import minimize_batch
+from eaco_jax.driver.minimize import minimize_batch
 
 
 def toy_builder(args):

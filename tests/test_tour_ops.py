@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from eaco_jax.tour_ops import erx, inversion_mutation, pmx, pmx_at, swap_mutation
+from eaco_jax.ops.tour_ops import erx, inversion_mutation, pmx, pmx_at, swap_mutation
 
 N = 40
 

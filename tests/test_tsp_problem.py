@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from eaco_jax.problem import ProblemError
 from eaco_jax.problems import TSP, load_tsplib
+from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.tsp import (
     DATA_DIR,
     bundled_instances,

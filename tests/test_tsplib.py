@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from eaco_jax.problem import ProblemError
+from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.tsp import DATA_DIR, bundled_instances, bundled_optima
-from eaco_jax.tsplib import coord_distances, distance_matrix, read_tsplib
+from eaco_jax.problems.tsplib import coord_distances, distance_matrix, read_tsplib
 
 # Canonical optimal tours from TSPLIB (1-based node ids), as space-separated strings.
 OPT_TOURS = {

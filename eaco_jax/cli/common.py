@@ -51,7 +51,7 @@ def guarded(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Turn the library's input errors into :func:`fail` one-liners."""
     import functools
 
-    from eaco_jax.problem import ProblemError
+    from eaco_jax.problems.base import ProblemError
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:

@@ -22,8 +22,8 @@ FUNCTIONS = ("sphere", "rosenbrock", "rastrigin", "ackley")
 
 def load_problem(name: str) -> Any:
     """A CEC2006 problem (g01-g13, G1-G4) or a test function by name; ProblemError if unknown."""
-    from eaco_jax.problem import ProblemError
     from eaco_jax.problems import cec2006, functions
+    from eaco_jax.problems.base import ProblemError
 
     if name.lower() in FUNCTIONS:
         return getattr(functions, name.lower())()
@@ -51,8 +51,8 @@ def run_constrained(
     quiet: bool = False,
 ) -> dict[str, Any]:
     """Solve ``problem`` (a name) and return the JSON record; writes ``out`` if given."""
-    from eaco_jax.constraints import check_method
-    from eaco_jax.minimize import minimize
+    from eaco_jax.driver.minimize import minimize
+    from eaco_jax.ops.constraints import check_method
     from eaco_jax.problems.constrained import float64
     from eaco_jax.strategies.continuous_eaco import TARGET_TOLERANCE, ContinuousEACO
 

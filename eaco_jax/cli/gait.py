@@ -196,7 +196,7 @@ def run_gait(
     """Optimise a gait with the continuous EACO colony; write outputs to ``out``; JSON record."""
     import jax.numpy as jnp
 
-    from eaco_jax.minimize import minimize
+    from eaco_jax.driver.minimize import minimize
     from eaco_jax.problems.gait import BACKENDS, make_gait_problem
     from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 

@@ -19,7 +19,7 @@ from eaco_jax.cli.common import RUNNERS, emit_json, guarded
 
 def resume_run(directory: str | Path, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """Re-run the command stored in the checkpoint in ``directory``; returns its JSON record."""
-    from eaco_jax.checkpoint import CheckpointError, read_meta
+    from eaco_jax.driver.checkpoint import CheckpointError, read_meta
 
     directory = Path(directory)
     if not directory.is_dir():
@@ -66,7 +66,7 @@ def register(app: typer.Typer) -> None:
 
 def _quiet_overrides(directory: Path) -> dict[str, Any]:
     """Switch off the progress bar in the stored arguments, whichever flag the command uses."""
-    from eaco_jax.checkpoint import read_meta
+    from eaco_jax.driver.checkpoint import read_meta
 
     args = (read_meta(directory).get("run_info") or {}).get("args") or {}
     out: dict[str, Any] = {}

@@ -32,7 +32,7 @@ def run_tsp(
     quiet: bool = False,
 ) -> dict[str, Any]:
     """Solve ``instance`` and return the JSON record; writes ``out`` if given."""
-    from eaco_jax.minimize import minimize
+    from eaco_jax.driver.minimize import minimize
     from eaco_jax.problems.tsp import load_tsplib, tour_length
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
@@ -79,7 +79,7 @@ def run_tsp(
 def instance_coords(instance: str) -> np.ndarray | None:
     """City coordinates of a bundled name or ``.tsp`` path (None for EXPLICIT matrices)."""
     from eaco_jax.problems.tsp import DATA_DIR
-    from eaco_jax.tsplib import read_tsplib
+    from eaco_jax.problems.tsplib import read_tsplib
 
     text = str(instance)
     bare = "/" not in text and "\\" not in text and not text.endswith(".tsp")

@@ -8,7 +8,7 @@ control step is kept. The result is the torso trace ``(ants, T + 1, 6)`` (positi
 row 0 being the initial pose, exactly what :func:`eaco_jax.gait.fitness.summarize` reads.
 
 :func:`native_trace` is the host function; :func:`native_trace_callback` wraps it with
-``jax.pure_callback`` so a jitted colony loop (``lax.scan`` in :func:`eaco_jax.minimize`) can
+``jax.pure_callback`` so a jitted colony loop (``lax.scan`` in :func:`eaco_jax.driver.minimize`) can
 call it; batching over seeds is flattened into the ant axis.
 """
 

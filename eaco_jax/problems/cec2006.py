@@ -14,7 +14,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from eaco_jax.problem import ProblemError
+from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.constrained import ConstrainedProblem
 
 Array = jax.Array

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.problem import Evaluation, ProblemError
+from eaco_jax.problems.base import Evaluation, ProblemError
 
 Array = jax.Array
 

@@ -23,7 +23,7 @@ from eaco_jax.gait.fitness import GaitSummary, gait_fitness, summarize
 from eaco_jax.gait.rollout_mjx import mjx_trace
 from eaco_jax.gait.rollout_native import native_model, native_trace, native_trace_callback
 from eaco_jax.gait.walk_engine import bounds, control_sequence, param_names
-from eaco_jax.problem import Evaluation, ProblemError
+from eaco_jax.problems.base import Evaluation, ProblemError
 from eaco_jax.robots import RobotSpec, known_robots, load_robot
 
 BACKENDS = ("auto", "mjx", "native")

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from eaco_jax.problem import ProblemError
+from eaco_jax.problems.base import ProblemError
 
 START, GOAL = 0, 1
 

@@ -19,8 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from eaco_jax.problem import ProblemError
-from eaco_jax.tsplib import COORD_TYPES, coord_distances, distance_matrix, read_tsplib
+from eaco_jax.problems.base import ProblemError
+from eaco_jax.problems.tsplib import COORD_TYPES, coord_distances, distance_matrix, read_tsplib
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "tsplib"
 DEFAULT_NEIGHBORS = 20

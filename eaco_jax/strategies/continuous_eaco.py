@@ -4,14 +4,14 @@ Our reading of the paper for real vectors (PAPER_NOTES.md section 2):
 
 * **Pheromone = ranked archive** (ACO_R, Socha & Dorigo 2008, EJOR 185:1155-1173): ``k``
   solutions sorted best first by the selected constraint-handling order
-  (:mod:`eaco_jax.constraints`). Rank ``l`` has weight ``exp(-l^2 / (2 (q k)^2))``.
+  (:mod:`eaco_jax.ops.constraints`). Rank ``l`` has weight ``exp(-l^2 / (2 (q k)^2))``.
 * **Construction**: with probability ``q0`` (the paper's exploitation parameter) an ant is
   guided by the archive's best, otherwise by a rank-weighted guide; each coordinate is drawn from
   a Gaussian around the guide with width ``rho * mean |x_e - x_guide|`` over the archive (``rho``
   is ACO_R's xi: pheromone evaporation = how fast the width shrinks).
 * **Mutated**: with probability ``p_crossover`` an ant is the Laplace-crossover child of its
   guide and a second rank-weighted archive member; with probability ``p_mutation`` it then
-  undergoes power mutation (Deep & Thakur 2007, :mod:`eaco_jax.real_ops`).
+  undergoes power mutation (Deep & Thakur 2007, :mod:`eaco_jax.ops.real_ops`).
 * **Chaos**: each ant carries a logistic-map sequence z <- 4z(1-z); while the best has not
   improved for ``chaos_patience`` iterations, a fraction ``chaos_rate`` of ants is placed at
   ``best + chaos_strength * (2z - 1) * (upper - lower)`` to escape stagnation.
@@ -46,12 +46,12 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from eaco_jax import constraints as ch
-from eaco_jax.chaos import logistic_step
-from eaco_jax.problem import Evaluation
+from eaco_jax.ops import constraints as ch
+from eaco_jax.ops.chaos import logistic_step
+from eaco_jax.ops.real_ops import laplace_crossover_sample, power_mutation_sample
+from eaco_jax.problems.base import Evaluation
 from eaco_jax.problems.constrained import ConstrainedProblem
-from eaco_jax.real_ops import laplace_crossover_sample, power_mutation_sample
-from eaco_jax.strategy import HISTORY_FIELDS, State, Strategy, base_fields
+from eaco_jax.strategies.base import HISTORY_FIELDS, State, Strategy, base_fields
 
 Array = jax.Array
 

@@ -39,7 +39,7 @@ Defaults (differences from the paper's Table 4 and why):
     earlier settings (beta 5, restart after 250 iterations without a new best-so-far,
     n / 2 - 1 choices), this finds the eil51 optimum in 10 s where those stopped at 427.
   * beta = 2 (ACOTSP's default; Table 4's 5 converges to worse tours in our runs).
-  * Q = 1 instead of 100: the same units (1/length) as Eq. 71, see :mod:`eaco_jax.pheromone`.
+  * Q = 1 instead of 100: the same units (1/length) as Eq. 71, see :mod:`eaco_jax.ops.pheromone`.
   * q0 = 0 (Table 3's best q0 = 0.8 is for the constrained problem G1; it makes TSP colonies
     converge prematurely); local update, elitist reinforcement, the Eq. 3-4 condition, the
     adaptive weight, chaos and the evaporation schedule are implemented but off by default
@@ -56,16 +56,16 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from eaco_jax import chaos, pheromone
-from eaco_jax.construction import (
+from eaco_jax.ops import chaos, pheromone
+from eaco_jax.ops.construction import (
     choice_weights,
     construct_tours,
     heuristic_log_eta,
     tour_lengths,
 )
-from eaco_jax.problem import ProblemError
+from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
-from eaco_jax.strategy import State, Strategy, base_fields, record_best
+from eaco_jax.strategies.base import State, Strategy, base_fields, record_best
 
 Array = jax.Array
 
@@ -303,7 +303,7 @@ class GraphEACO(Strategy):
         m = tours.shape[0]
         if self.crossover == "none" and self.mutation == "none":
             return tours, _f(0.0), _f(0.0)
-        from eaco_jax import tour_ops
+        from eaco_jax.ops import tour_ops
 
         lengths = tour_lengths(state.dist, tours)
         lo, mean = jnp.min(lengths), jnp.mean(lengths)
@@ -340,7 +340,7 @@ class GraphEACO(Strategy):
     def _local_search(self, tours: Array, state: GraphState) -> Array:
         if self.local_search == "none":
             return tours
-        from eaco_jax import local_search
+        from eaco_jax.ops import local_search
 
         return local_search.two_opt(tours, state.dist, state.neighbors, self.max_ls_moves)
 
@@ -415,7 +415,7 @@ class GraphEACO(Strategy):
         tau = pheromone.reset(tau, tau_max, restart)
         since = jnp.where(restart, 0, since)
 
-        from eaco_jax.diversity import edge_diversity
+        from eaco_jax.ops.diversity import edge_diversity
 
         return state.replace(
             tau=tau,

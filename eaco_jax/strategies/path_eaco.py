@@ -3,7 +3,7 @@
 The colony machinery is the graph colony's: random-proportional choice (Eq. 2) with the q0
 rule, logistic-map chaos on the choice weights, elitist reinforcement (Eq. 73-74) restricted by
 the elitist-only deposit condition (Eq. 3-4) and weighted adaptively (Eq. 5), MAX-MIN bounds
-(Eq. 7) and a stagnation-driven evaporation schedule - all from :mod:`eaco_jax.pheromone`.
+(Eq. 7) and a stagnation-driven evaporation schedule - all from :mod:`eaco_jax.ops.pheromone`.
 What differs is the walk: an ant starts at the start node, may only take visible edges, stops
 at the goal, and is dead (cost +inf) if it gets stuck. The heuristic is goal-directed,
 eta_ij = 1 / (d_ij + |x_j - goal|), so ants prefer short edges that head for the goal.
@@ -22,10 +22,10 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from eaco_jax import chaos, pheromone
-from eaco_jax.construction import choice_weights
+from eaco_jax.ops import chaos, pheromone
+from eaco_jax.ops.construction import choice_weights
 from eaco_jax.problems.path_planning import GOAL, START
-from eaco_jax.strategy import State, Strategy, base_fields, record_best
+from eaco_jax.strategies.base import State, Strategy, base_fields, record_best
 
 Array = jax.Array
 

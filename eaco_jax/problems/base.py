@@ -20,6 +20,8 @@ from typing import Any, Protocol, runtime_checkable
 import jax
 from flax import struct
 
+from eaco_jax.errors import ProblemError  # noqa: F401  (re-exported)
+
 
 @struct.dataclass
 class Evaluation:
@@ -37,5 +39,3 @@ class Problem(Protocol):
     def evaluate(self, solutions: jax.Array) -> Any: ...
 
 
-class ProblemError(ValueError):
-    """A problem definition or input file is invalid; the message says how to fix it."""

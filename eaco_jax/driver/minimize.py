@@ -1,7 +1,8 @@
 """The run driver: many ask/evaluate/tell iterations inside ``lax.scan``, in chunks.
 
 One chunk of iterations is one compiled call; between chunks the host updates the progress
-bar, checks the stop conditions and (see :mod:`eaco_jax.checkpoint`) writes checkpoints. Several
+bar, checks the stop conditions and (see :mod:`eaco_jax.driver.checkpoint`) writes
+checkpoints. Several
 seeds run as one vmapped call when ``seed`` is a sequence.
 """
 
@@ -18,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.strategy import State, Strategy
+from eaco_jax.strategies.base import State, Strategy
 
 
 @dataclasses.dataclass
@@ -193,7 +194,7 @@ def minimize(
     """Minimise ``problem`` with an EACO colony.
 
     Args:
-      problem: a graph or continuous problem (see :mod:`eaco_jax.problem`).
+      problem: a graph or continuous problem (see :mod:`eaco_jax.problems.base`).
       strategy: the colony; default :func:`default_strategy` for the problem's kind.
       seed: an int, or a sequence of ints to run several seeds as one vmapped call.
       iterations / max_evaluations: the budget (one of them; default 100 iterations).
@@ -202,7 +203,7 @@ def minimize(
       target: stop after the chunk in which every seed's best cost is <= target.
       progress: show a progress bar (tqdm).
       on_chunk: called as ``on_chunk(state, iterations_done)`` after each chunk.
-      checkpoint_dir: save the run there (see :mod:`eaco_jax.checkpoint`); when the folder
+      checkpoint_dir: save the run there (see :mod:`eaco_jax.driver.checkpoint`); when the folder
         already holds a checkpoint of this same run, continue from its newest complete step
         (bit-identical to an unbroken run). A checkpoint of another run raises CheckpointError.
       checkpoint_every / checkpoint_seconds: save after the chunk in which this many iterations
@@ -313,7 +314,7 @@ def run_resumable(
             strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
             target=target, progress=progress, on_chunk=on_chunk,
         )
-    from eaco_jax.checkpoint import RunCheckpointer, run_identity, strong_types
+    from eaco_jax.driver.checkpoint import RunCheckpointer, run_identity, strong_types
 
     state = strong_types(state)
     identity = run_identity(problem, strategy, state.params, seeds, total, chunk)

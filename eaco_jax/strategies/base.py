@@ -10,7 +10,7 @@ iterations) apply to the pure functions
     solutions, state = strategy.ask(key, state)
     state = strategy.tell(state, solutions, fitness)
 
-``fitness`` is whatever ``problem.evaluate(solutions)`` returns (see :mod:`eaco_jax.problem`).
+``fitness`` is whatever ``problem.evaluate(solutions)`` returns (see :mod:`eaco_jax.problems.base`).
 The hyper-parameters are stored in ``state.params`` so a batch of states built from a batch of
 params is a vmappable sweep.
 

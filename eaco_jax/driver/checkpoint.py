@@ -33,12 +33,12 @@ from typing import Any
 import jax
 import numpy as np
 
+from eaco_jax.errors import CheckpointError
+
 #: bumped whenever the on-disk layout changes; other formats are refused on restore.
 FORMAT = 1
 
 
-class CheckpointError(ValueError):
-    """A checkpoint cannot be used for this run; the message says why and what to do."""
 
 
 # --------------------------------------------------------------------------- identity

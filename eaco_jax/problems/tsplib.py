@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from eaco_jax.problem import ProblemError
+from eaco_jax.problems.base import ProblemError
 
 COORD_TYPES = ("EUC_2D", "CEIL_2D", "ATT", "GEO")
 EXPLICIT_FORMATS = ("FULL_MATRIX", "UPPER_ROW", "LOWER_ROW", "UPPER_DIAG_ROW", "LOWER_DIAG_ROW")

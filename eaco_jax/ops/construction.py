@@ -7,7 +7,7 @@ T_k it chooses the next node j
   (the pseudo-random proportional rule of ACS, Table 3's ``q0``), otherwise
 * at random with p_ij proportional to tau_ij^alpha eta_ij^beta over j not in T_k (Eq. 2).
 
-The choice weights may be multiplied by a per-ant chaos factor (see :mod:`eaco_jax.chaos`).
+The choice weights may be multiplied by a per-ant chaos factor (see :mod:`eaco_jax.ops.chaos`).
 All ants move together: one scan step is a batched gather of the current rows of the weight
 matrix (or of the k candidate columns, see ``candidates``), a tabu mask (``alive``: 1 for
 nodes still to visit, 0 for visited ones), prefix sums and one uniform draw per ant, used for

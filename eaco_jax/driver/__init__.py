@@ -1,0 +1,1 @@
+"""The run driver: compiled chunks of ask/evaluate/tell, stop rules, checkpoints."""
