@@ -16,6 +16,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def subplots(*args, **kwargs):
+    """``plt.subplots`` on the Agg backend (no display needed)."""
+    return plt.subplots(*args, **kwargs)
+
+
+def save_figure(fig: plt.Figure, path: str | Path) -> Path:
+    """Write ``fig`` as PNG at ``path`` (folders created) and close it."""
+    return _save(fig, path)
+
+
 def _save(fig: plt.Figure, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -130,4 +140,30 @@ def planned_path(
     ax.autoscale_view()
     ax.set_title(title)
     ax.legend(loc="lower right", fontsize=8)
+    return _save(fig, path)
+
+
+def constrained_convergence(
+    history: Mapping[str, np.ndarray],
+    path: str | Path,
+    *,
+    f_star: float | None = None,
+    title: str = "Convergence",
+) -> Path:
+    """Best feasible objective (or its error f - f*, log scale) against evaluations."""
+    evals = np.asarray(history["evaluations"])
+    best = np.asarray(history["best_f"], dtype=np.float64)
+    feas = np.asarray(history["best_violation"]) <= 0
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if f_star is not None:
+        gap = np.where(feas, np.maximum(best - f_star, 1e-16), np.nan)
+        ax.semilogy(evals, gap)
+        ax.axhline(1e-4, color="gray", ls="--", lw=0.8, label="1e-4 (CEC2006 success)")
+        ax.set_ylabel("best feasible f - f*")
+        ax.legend()
+    else:
+        ax.plot(evals, np.where(feas, best, np.nan))
+        ax.set_ylabel("best feasible f")
+    ax.set_xlabel("evaluations")
+    ax.set_title(title)
     return _save(fig, path)

@@ -1,4 +1,4 @@
-"""Gait colony evaluation on one device vs split over all local devices (eaco_jax.sharding).
+"""Gait colony evaluation on one device vs split over all local devices (eaco_jax.problems.sharding).
 
 Evaluates the same colony of NAO gaits (MJX backend) once on the first device and once sharded
 over every local device, checks the fitness values agree, and prints physics steps/s of each.
@@ -21,7 +21,7 @@ import numpy as np
 
 from eaco_jax.gait.rollout_native import native_model, substeps
 from eaco_jax.problems.gait import make_gait_problem
-from eaco_jax.sharding import shard
+from eaco_jax.problems.sharding import shard
 
 
 def timed(fn, x, repeats: int) -> tuple[np.ndarray, float, float]:

@@ -16,7 +16,7 @@ SCRIPT = textwrap.dedent(
     import sys; sys.path.insert(0, sys_path)
     from test_driver import RandomSearch, Sphere
     import eaco_jax as ea
-    from eaco_jax.sharding import shard
+    from eaco_jax.problems.sharding import shard
 
     problem = Sphere(lower=-jnp.ones(3), upper=jnp.ones(3))
     sharded = shard(problem)

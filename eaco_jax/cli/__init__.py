@@ -1,7 +1,8 @@
 """The ``eaco`` command line. Each module of this package registers its own sub-commands.
 
 A module defines ``register(app: typer.Typer) -> None``; modules are discovered, so adding a
-command never means editing this file.
+command never means editing this file. The run commands come from :mod:`eaco_jax.runs`
+(:mod:`eaco_jax.cli.runs`): the command line parses and prints, the runs do the work.
 """
 
 from __future__ import annotations

@@ -1,35 +1,7 @@
-"""``eaco sweep SWEEP.yaml``: hyper-parameters x seeds for a run command, batched, resumable.
+"""``eaco sweep SWEEP.yaml``: settings x seeds for a run kind, batched, resumable.
 
-The YAML file::
-
-    name: table3_g01            # optional, used in titles and the summary
-    command: constrained        # run command whose builder makes problem + strategy
-                                # (constrained, tsp); or builder: "package.module:function"
-    args:                       # fixed arguments of that command (static configuration)
-      problem: g01
-      iterations: 300
-      num_ants: 20
-    seeds: 10                   # 0..9, or an explicit list [3, 7, 11]
-    cells:                      # listed settings (each one cell) ...
-      - {q0: 0.2, rho: 0.1, p_crossover: 0.2, p_mutation: 0.2}
-      - {q0: 0.8, rho: 0.3, p_crossover: 0.5, p_mutation: 0.6}
-    grid:                       # ... and/or a grid (cartesian product, crossed with cells)
-      locality: [0.1, 0.2]
-    # random:                   # or instead: n random settings
-    #   n: 20
-    #   seed: 0
-    #   space: {q0: [0.1, 0.9], rho: {low: 0.01, high: 1.0, log: true},
-    #           num_ants: {choice: [20, 40]}}
-    checkpoint_every: 50        # optional: checkpoint every run (resume inside a cell)
-
-A swept key that is a field of the strategy's Params (``q0``, ``rho``, ``p_crossover``, ...) is
-traced: all cells that differ only in such keys run as ONE vmapped, jitted call. Any other key
-is a static argument of the command (``num_ants``, ``problem``, ``iterations``, ...): cells with
-different static arguments run one group after another (or one Ray task per cell with
-``--backend ray``).
-
-Results: ``OUT/cells/*.json`` (one per finished cell; a rerun skips them), ``OUT/table.csv`` and
-``OUT/table.json`` (one row per cell x seed), ``OUT/summary.json`` and ``OUT/summary.png``.
+The file format is documented in ``docs/sweeps.md`` (and :mod:`eaco_jax.sweep.spec`); its keys
+are the run command's flags (``ants``, ``iterations``, ...) and the strategy's Params fields.
 """
 
 from __future__ import annotations
@@ -40,6 +12,7 @@ from typing import Annotated
 import typer
 
 from eaco_jax.cli.common import emit_json, guarded
+from eaco_jax.errors import ConfigError
 
 
 def load_spec(path: Path) -> dict:
@@ -47,14 +20,14 @@ def load_spec(path: Path) -> dict:
     import yaml
 
     if not path.is_file():
-        raise FileNotFoundError(f"sweep file {path} does not exist")
+        raise ConfigError(f"sweep file {path} does not exist")
     try:
         spec = yaml.safe_load(path.read_text())
     except yaml.YAMLError as err:
         first = str(err).splitlines()[0]
-        raise ValueError(f"sweep file {path} is not valid YAML: {first}") from None
+        raise ConfigError(f"sweep file {path} is not valid YAML: {first}") from None
     if not isinstance(spec, dict):
-        raise ValueError(f"sweep file {path} must hold a mapping (name, command, args, ...)")
+        raise ConfigError(f"sweep file {path} must hold a mapping (name, command, args, ...)")
     return spec
 
 
@@ -63,7 +36,8 @@ def register(app: typer.Typer) -> None:
     @guarded
     def sweep(
         spec_file: Annotated[Path, typer.Argument(help="sweep YAML file")],
-        backend: Annotated[str, typer.Option(help="local (vmapped groups) or ray")] = "local",
+        executor: Annotated[str, typer.Option(
+            help="local (vmapped groups) or ray (one task per cell)")] = "local",
         out: Annotated[Path | None, typer.Option(help="output folder")] = None,
         address: Annotated[str | None, typer.Option(help="Ray cluster address")] = None,
         workers: Annotated[int | None, typer.Option(help="local Ray CPUs (workers)")] = None,
@@ -72,18 +46,18 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Run a hyper-parameter sweep; an interrupted sweep resumes where it stopped.
 
-        YAML keys: command (constrained|tsp|gait) or builder ("module:function"), args (fixed
-        command arguments), seeds (int or list), cells (list of settings) and/or grid (lists,
-        crossed), or random (n, seed, space), checkpoint_every. Swept Params fields run as
-        one vmapped call. Full format: the docstring of eaco_jax/cli/sweep.py; example:
+        YAML keys: command (tsp|constrained|path|gait) or kind ("module:RUNKIND"), args
+        (fixed settings: the command's flags), seeds (int or list), cells (list of settings)
+        and/or grid (lists, crossed), or random (n, seed, space), checkpoint_every. Swept
+        Params fields run as one vmapped call. Format: docs/sweeps.md; example:
         experiments/sweeps/table3_g01.yaml.
         """
         from eaco_jax.sweep import run_sweep
 
         spec = load_spec(spec_file)
         folder = out or Path("sweeps") / spec_file.stem
-        ray_options = {"address": address, "num_cpus": workers} if backend == "ray" else None
-        record = run_sweep(spec, folder, backend=backend, progress=not (quiet or json_out),
+        ray_options = {"address": address, "num_cpus": workers} if executor == "ray" else None
+        record = run_sweep(spec, folder, backend=executor, progress=not (quiet or json_out),
                            ray_options=ray_options)
         if json_out:
             emit_json(record)

@@ -33,10 +33,13 @@ from typing import Any
 import jax
 import numpy as np
 
+from eaco_jax._version import __version__
+from eaco_jax.driver.history import merge_history
 from eaco_jax.errors import CheckpointError
 
 #: bumped whenever the on-disk layout changes; other formats are refused on restore.
-FORMAT = 1
+#: 2: problem data and telemetry left the colony state (eaco_jax 0.2).
+FORMAT = 2
 
 
 
@@ -88,12 +91,10 @@ def run_identity(
     chunk: int,
 ) -> dict[str, Any]:
     """What must match between a checkpoint and the run that wants to resume from it."""
-    import eaco_jax
-
     fields = {f.name: getattr(strategy, f.name) for f in dataclasses.fields(strategy)}
     return {
         "format": FORMAT,
-        "version": eaco_jax.__version__,
+        "version": __version__,
         "problem": {
             "name": str(getattr(problem, "name", type(problem).__name__)),
             "kind": str(getattr(problem, "kind", "")),
@@ -120,8 +121,8 @@ def check_identity(stored: dict[str, Any], current: dict[str, Any], where: Path)
     if stored.get("format") != current["format"]:
         raise CheckpointError(
             f"checkpoint in {where} has format {stored.get('format')!r}, this eaco_jax reads "
-            f"format {current['format']}; resume it with the version that wrote it or use a new "
-            "--checkpoint-dir"
+            f"format {current['format']} (the colony state's layout changed); resume it with "
+            "the version that wrote it or use a new --checkpoint-dir"
         )
     if not _compatible_version(str(stored.get("version", "")), current["version"]):
         raise CheckpointError(
@@ -172,15 +173,6 @@ def strong_types(tree: Any) -> Any:
     Applied to a fresh state too, so fresh and resumed runs compile the same program.
     """
     return jax.tree.map(lambda x: x if _is_key(x) else jax.device_put(np.asarray(x)), tree)
-
-
-def merge_history(history: list[dict[str, Any]], axis: int) -> dict[str, np.ndarray]:
-    """Concatenate per-chunk history dicts along the iteration axis."""
-    if not history:
-        return {}
-    return {
-        k: np.concatenate([np.asarray(h[k]) for h in history], axis=axis) for k in history[0]
-    }
 
 
 @dataclasses.dataclass
@@ -334,15 +326,13 @@ class RunCheckpointer:
     def save(self, state: Any, done: int, history: dict[str, Any], finished: bool) -> None:
         import orbax.checkpoint as ocp
 
-        import eaco_jax
-
         meta = dict(self.identity)
         meta.update(
             done=int(done),
             finished=bool(finished),
             run_info=self.run_info,
             saved_at=time.time(),
-            writer=f"eaco_jax {eaco_jax.__version__}",
+            writer=f"eaco_jax {__version__}",
         )
         mgr = self._writer()
         if done in mgr.all_steps():  # e.g. the final save of a run resumed at its last step

@@ -1,13 +1,15 @@
-"""The run driver: many ask/evaluate/tell iterations inside ``lax.scan``, in chunks.
+"""The run driver: many ask/evaluate/tell iterations inside ``lax.scan``, in compiled chunks.
 
 One chunk of iterations is one compiled call; between chunks the host updates the progress
-bar, checks the stop conditions and (see :mod:`eaco_jax.driver.checkpoint`) writes
-checkpoints. Several
-seeds run as one vmapped call when ``seed`` is a sequence.
+bar, asks the stop rules (:mod:`eaco_jax.driver.stop`) and writes checkpoints
+(:class:`Checkpointing`). Several seeds, or several hyper-parameter settings times seeds, run
+as one vmapped call. Compiled chunks are cached: a second ``minimize`` with the same strategy,
+shapes and chunk length compiles nothing.
 """
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import math
 import time
@@ -19,15 +21,44 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from eaco_jax.driver.history import merge_history
+from eaco_jax.driver.stop import Callback, Patience, Progress, StopRule, Target, WallTime
+from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.strategies.base import State, Strategy
+
+
+@dataclasses.dataclass(frozen=True)
+class Checkpointing:
+    """Where and how often :func:`minimize` saves the run (see :mod:`eaco_jax.driver.checkpoint`).
+
+    A folder that already holds a checkpoint of this same run is resumed from its newest
+    complete step (bit-identical to an unbroken run); one of another run is refused.
+
+    Attributes:
+      directory: the checkpoint folder.
+      every / seconds: save after the chunk in which this many iterations / seconds have passed
+        since the last save (the end of the run is always saved). ``every`` also caps the
+        default chunk length so saves land on it.
+      keep: how many checkpoints to keep.
+      run_info: JSON-able dict stored with each checkpoint (``eaco resume`` reads
+        ``{"command": run kind, "args": settings}`` from it).
+    """
+
+    directory: str | Path
+    every: int | None = None
+    seconds: float | None = None
+    keep: int = 3
+    run_info: dict[str, Any] | None = None
 
 
 @dataclasses.dataclass
 class Result:
-    """What :func:`minimize` returns. With several seeds every array has a leading seed axis.
+    """What :func:`minimize` returns. With several rows (seeds, settings) every array has a
+    leading row axis.
 
-    ``history`` maps a statistic name to an array over iterations (best so far, iteration
-    best, iteration mean, diversity, plus strategy-specific entries).
+    ``history`` maps a metric name to an array over iterations (best so far, iteration best,
+    iteration mean, diversity, plus strategy-specific metrics). ``stop_reason`` says why the
+    run ended: ``"iterations"`` (the budget) or the name of the stop rule that fired.
     """
 
     best_solution: np.ndarray
@@ -42,6 +73,7 @@ class Result:
     problem: Any
     strategy: Strategy
     seeds: list[int]
+    stop_reason: str = "iterations"
 
     @property
     def batched(self) -> bool:
@@ -84,56 +116,89 @@ def default_strategy(problem: Any) -> Strategy:
         if not getattr(problem, "differentiable", True):  # simulations: no gradient steps
             return ContinuousEACO(refine_ants=0, repair_steps=0)
         return ContinuousEACO()
-    raise TypeError(
+    raise ProblemError(
         "minimize() needs a problem with kind 'graph', 'path' or 'continuous', got "
         f"{type(problem).__name__} with kind={kind!r}; "
         "build one with eaco_jax.problems (TSP, ConstrainedProblem, ...)."
     )
 
 
+# --------------------------------------------------------------------------- one iteration
 def iteration_step(strategy: Strategy, problem: Any, state: State) -> tuple[State, dict]:
     """One ask -> evaluate -> tell round; the key for it is split off ``state.key``."""
     key, ask_key = jax.random.split(state.key)
-    solutions, state = strategy.ask(ask_key, state.replace(key=key))
+    solutions, state = strategy.ask(ask_key, state.replace(key=key), problem)
     fitness = problem.evaluate(solutions)
-    state = strategy.tell(state, solutions, fitness)
-    return state, strategy.stats(state)
+    return strategy.tell(state, solutions, fitness, problem)
 
 
 def make_chunk_fn(strategy: Strategy, length: int, batched: bool) -> Callable:
-    """A jitted ``(problem, state, active=None) -> (state, history)`` over ``length`` iterations.
+    """A jitted ``(problem, state, active) -> (state, history)`` over ``length`` iterations.
 
-    With ``active`` (a traced int) only the first ``active`` iterations run and the rest pass the
-    state through (``lax.cond``), so a run's last, shorter chunk reuses the same compiled program
-    instead of compiling another; the caller drops the history rows past ``active``.
+    Only the first ``active`` (a traced int) iterations run; the rest pass the state through
+    (``lax.cond``), so a run's last, shorter chunk reuses the same compiled program. The
+    caller drops the history rows past ``active``.
     """
 
     def run(problem, state, active):
         def step(s, i):
-            if active is None:
-                return iteration_step(strategy, problem, s)
-            return jax.lax.cond(
-                i < active,
-                lambda s: iteration_step(strategy, problem, s),
-                lambda s: (s, strategy.stats(s)),
-                s,
-            )
+            def skip(s):
+                shapes = jax.eval_shape(lambda t: iteration_step(strategy, problem, t)[1], s)
+                return s, jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
+
+            return jax.lax.cond(i < active, lambda s: iteration_step(strategy, problem, s),
+                                skip, s)
 
         return jax.lax.scan(step, state, jnp.arange(length))
 
     if batched:
         run = jax.vmap(run, in_axes=(None, 0, None))
-
-    def chunk(problem, state, active=None):
-        return run(problem, state, active)
-
-    return jax.jit(chunk)
+    return jax.jit(run)
 
 
-def init_states(
-    strategy: Strategy, problem: Any, seeds: Sequence[int], params: Any | None
+_COMPILED: collections.OrderedDict[Any, Any] = collections.OrderedDict()
+_COMPILED_MAX = 32
+
+
+def _signature(tree: Any) -> tuple:
+    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    return treedef, tuple((tuple(np.shape(x)), str(getattr(x, "dtype", type(x))),
+                           bool(getattr(x, "weak_type", False))) for x in leaves)
+
+
+def compiled_chunk(strategy: Strategy, length: int, batched: bool, problem: Any,
+                   state: State) -> tuple[Any, float]:
+    """The compiled chunk for these shapes and static configuration, and the seconds spent
+    compiling it now (0.0 when it came from this process's cache)."""
+    key = (strategy, length, batched, _signature(problem), _signature(state))
+    if key in _COMPILED:
+        _COMPILED.move_to_end(key)
+        return _COMPILED[key], 0.0
+    t0 = time.perf_counter()
+    active = jnp.int32(length)
+    compiled = make_chunk_fn(strategy, length, batched).lower(problem, state, active).compile()
+    seconds = time.perf_counter() - t0
+    _COMPILED[key] = compiled
+    while len(_COMPILED) > _COMPILED_MAX:
+        _COMPILED.popitem(last=False)
+    return compiled, seconds
+
+
+# --------------------------------------------------------------------------- setup helpers
+def initial_state(
+    strategy: Strategy, problem: Any, seeds: Sequence[int], params: Any | None = None
 ) -> State:
-    """Initial state for one seed, or a vmapped batch of states for several."""
+    """The initial state for one seed, or a vmapped batch of states.
+
+    ``params`` is one Params pytree (default: ``strategy.default_params(problem)``) or a list
+    of them (a batch of settings): then row ``r`` belongs to ``params[r // len(seeds)]`` with
+    seed ``seeds[r % len(seeds)]``.
+    """
+    if isinstance(params, list | tuple):
+        stacked = stack_params(list(params))
+        flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
+        keys = jnp.stack([jax.random.key(int(s)) for s in list(seeds) * len(params)])
+        return jax.vmap(lambda k, p: strategy.init(k, problem, p))(keys, flat)
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
     if params is None:
         params = strategy.default_params(problem)
@@ -142,20 +207,31 @@ def init_states(
     return jax.vmap(lambda k: strategy.init(k, problem, params))(keys)
 
 
+def stack_params(params: Sequence[Any]) -> Any:
+    """Stack a list of same-structure Params pytrees along a new leading axis."""
+    if not params:
+        raise ConfigError("params sequence is empty")
+    structures = {str(jax.tree_util.tree_structure(p)) for p in params}
+    if len(structures) > 1:
+        raise ConfigError("every params set must have the same fields (one Params type)")
+    return jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *params)
+
+
 def resolve_iterations(
     strategy: Strategy, iterations: int | None, max_evaluations: int | None
 ) -> int:
+    """The iteration budget from ``iterations`` or ``max_evaluations`` (default 100)."""
     if iterations is not None and max_evaluations is not None:
-        raise ValueError("give iterations or max_evaluations, not both")
+        raise ConfigError("give iterations or max_evaluations, not both")
     if max_evaluations is not None:
         if max_evaluations < strategy.num_ants:
-            raise ValueError(
+            raise ConfigError(
                 f"max_evaluations={max_evaluations} is below one colony ({strategy.num_ants} ants)"
             )
         return max_evaluations // strategy.num_ants
     iterations = 100 if iterations is None else iterations
     if iterations < 1:
-        raise ValueError(f"iterations must be >= 1, got {iterations}")
+        raise ConfigError(f"iterations must be >= 1, got {iterations}")
     return int(iterations)
 
 
@@ -163,204 +239,138 @@ def checked_seeds(strategy: Strategy, problem: Any, seed: int | Sequence[int]) -
     """The seeds as a list, after checking that ``strategy`` solves ``problem``'s kind."""
     kind = getattr(problem, "kind", None)
     if strategy.problem_kind and kind != strategy.problem_kind:
-        raise TypeError(
+        raise ProblemError(
             f"{type(strategy).__name__} solves '{strategy.problem_kind}' problems, "
             f"but {getattr(problem, 'name', problem)!r} is '{kind}'"
         )
     seeds = [int(seed)] if np.ndim(seed) == 0 else [int(s) for s in seed]
     if not seeds:
-        raise ValueError("seed sequence is empty")
+        raise ConfigError("seed sequence is empty")
     return seeds
-
-
-def minimize(
-    problem: Any,
-    strategy: Strategy | None = None,
-    *,
-    seed: int | Sequence[int] = 0,
-    iterations: int | None = None,
-    max_evaluations: int | None = None,
-    params: Any | None = None,
-    chunk_size: int | None = None,
-    target: float | None = None,
-    progress: bool = False,
-    on_chunk: Callable[[State, int], None] | None = None,
-    checkpoint_dir: str | Path | None = None,
-    checkpoint_every: int | None = None,
-    checkpoint_seconds: float | None = None,
-    keep: int = 3,
-    run_info: dict[str, Any] | None = None,
-) -> Result:
-    """Minimise ``problem`` with an EACO colony.
-
-    Args:
-      problem: a graph or continuous problem (see :mod:`eaco_jax.problems.base`).
-      strategy: the colony; default :func:`default_strategy` for the problem's kind.
-      seed: an int, or a sequence of ints to run several seeds as one vmapped call.
-      iterations / max_evaluations: the budget (one of them; default 100 iterations).
-      params: hyper-parameters (default ``strategy.default_params(problem)``).
-      chunk_size: iterations per compiled call (default: about 20 chunks per run).
-      target: stop after the chunk in which every seed's best cost is <= target.
-      progress: show a progress bar (tqdm).
-      on_chunk: called as ``on_chunk(state, iterations_done)`` after each chunk.
-      checkpoint_dir: save the run there (see :mod:`eaco_jax.driver.checkpoint`); when the folder
-        already holds a checkpoint of this same run, continue from its newest complete step
-        (bit-identical to an unbroken run). A checkpoint of another run raises CheckpointError.
-      checkpoint_every / checkpoint_seconds: save after the chunk in which this many iterations
-        / seconds have passed since the last save (the end of the run is always saved).
-        ``checkpoint_every`` also caps the default chunk length so saves land on it.
-      keep: how many checkpoints to keep.
-      run_info: JSON-able dict stored with each checkpoint (``eaco resume`` reads
-        ``{"command": name, "args": {...}}`` from it).
-    """
-    strategy = default_strategy(problem) if strategy is None else strategy
-    seeds = checked_seeds(strategy, problem, seed)
-    total = resolve_iterations(strategy, iterations, max_evaluations)
-    chunk = default_chunk(total, chunk_size, checkpoint_every)
-    batched = len(seeds) > 1
-
-    state = init_states(strategy, problem, seeds, params)
-    return run_resumable(
-        strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
-        target=target, progress=progress, on_chunk=on_chunk, checkpoint_dir=checkpoint_dir,
-        checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, keep=keep,
-        run_info=run_info,
-    )
-
-
-def stack_params(params: Sequence[Any]) -> Any:
-    """Stack a list of same-structure Params pytrees along a new leading axis."""
-    if not params:
-        raise ValueError("params sequence is empty")
-    structures = {str(jax.tree_util.tree_structure(p)) for p in params}
-    if len(structures) > 1:
-        raise ValueError("every params set must have the same fields (one Params type)")
-    return jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *params)
-
-
-def minimize_batch(
-    problem: Any,
-    strategy: Strategy,
-    params: Sequence[Any],
-    *,
-    seed: int | Sequence[int] = 0,
-    iterations: int | None = None,
-    max_evaluations: int | None = None,
-    chunk_size: int | None = None,
-    progress: bool = False,
-    checkpoint_dir: str | Path | None = None,
-    checkpoint_every: int | None = None,
-    checkpoint_seconds: float | None = None,
-    keep: int = 3,
-    run_info: dict[str, Any] | None = None,
-) -> Result:
-    """Several hyper-parameter sets x seeds as ONE vmapped, jitted run (a sweep on one device).
-
-    Hyper-parameters are traced (they live in ``state.params``), so every (params, seed) pair is
-    one row of a batch of colony states. Row ``r`` of every result array belongs to
-    ``params[r // len(seeds)]`` with seed ``seeds[r % len(seeds)]``; ``result.seeds`` lists the
-    seed of every row. Checkpointing works as in :func:`minimize`.
-    """
-    seeds = checked_seeds(strategy, problem, seed)
-    stacked = stack_params(list(params))
-    rows = len(params) * len(seeds)
-    flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
-    keys = jnp.stack([jax.random.key(s) for s in seeds * len(params)])
-    state = jax.vmap(lambda k, p: strategy.init(k, problem, p))(keys, flat)
-    total = resolve_iterations(strategy, iterations, max_evaluations)
-    chunk = default_chunk(total, chunk_size, checkpoint_every)
-    assert state.iteration.shape == (rows,)
-    return run_resumable(
-        strategy, problem, state, total=total, chunk=chunk, batched=True,
-        seeds=seeds * len(params), progress=progress, checkpoint_dir=checkpoint_dir,
-        checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, keep=keep,
-        run_info=run_info,
-    )
 
 
 def default_chunk(total: int, chunk_size: int | None, checkpoint_every: int | None) -> int:
     """Iterations per compiled call: given, else ~20 chunks per run, at most checkpoint_every."""
     if chunk_size is not None:
         if chunk_size < 1:
-            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+            raise ConfigError(f"chunk_size must be >= 1, got {chunk_size}")
         return int(chunk_size)
     chunk = max(1, math.ceil(total / 20))
     return min(chunk, int(checkpoint_every)) if checkpoint_every else chunk
 
 
-def run_resumable(
-    strategy: Strategy,
-    problem: Any,
-    state: State,
-    *,
-    total: int,
-    chunk: int,
-    batched: bool,
-    seeds: list[int],
+def stop_rules(
     target: float | None = None,
-    progress: bool = False,
-    on_chunk: Callable[[State, int], None] | None = None,
-    checkpoint_dir: str | Path | None = None,
-    checkpoint_every: int | None = None,
-    checkpoint_seconds: float | None = None,
-    keep: int = 3,
-    run_info: dict[str, Any] | None = None,
-) -> Result:
-    """:func:`run_chunks` from a fresh ``state``, or from the checkpoint in ``checkpoint_dir``."""
-    if checkpoint_dir is None:
-        if checkpoint_every is not None or checkpoint_seconds is not None:
-            raise ValueError("checkpoint_every / checkpoint_seconds need a checkpoint_dir")
-        return run_chunks(
-            strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
-            target=target, progress=progress, on_chunk=on_chunk,
-        )
-    from eaco_jax.driver.checkpoint import RunCheckpointer, run_identity, strong_types
-
-    state = strong_types(state)
-    identity = run_identity(problem, strategy, state.params, seeds, total, chunk)
-    ckpt = RunCheckpointer(
-        checkpoint_dir, identity, every=checkpoint_every, seconds=checkpoint_seconds,
-        keep=keep, run_info=run_info, batched=batched,
-    )
-    restored = ckpt.restore(state)
-    done, history = 0, None
-    if restored is not None:
-        state, done, history = restored.state, restored.done, [restored.history]
-        if restored.finished:
-            total = done
-    return run_chunks(
-        strategy, problem, state, total=total, chunk=chunk, batched=batched, seeds=seeds,
-        done=done, history=history, target=target, progress=progress, on_chunk=on_chunk,
-        checkpointer=ckpt,
-    )
+    patience: int | None = None,
+    max_seconds: float | None = None,
+    callback: Callable[[Any, Progress], Any] | None = None,
+    stop: StopRule | Sequence[StopRule] | None = None,
+) -> list[tuple[str, StopRule]]:
+    """The named stop rules of :func:`minimize`'s keywords."""
+    rules: list[tuple[str, StopRule]] = []
+    if target is not None:
+        rules.append(("target", Target(float(target))))
+    if patience is not None:
+        rules.append(("patience", Patience(int(patience))))
+    if max_seconds is not None:
+        if not max_seconds > 0:
+            raise ConfigError(f"max_seconds must be > 0, got {max_seconds}")
+        rules.append(("max_seconds", WallTime(float(max_seconds))))
+    if callback is not None:
+        rules.append(("callback", Callback(callback)))
+    if stop is not None:
+        for r in ([stop] if callable(stop) else list(stop)):
+            rules.append((getattr(r, "__name__", type(r).__name__), r))
+    return rules
 
 
-def run_chunks(
-    strategy: Strategy,
+# --------------------------------------------------------------------------- the driver
+def minimize(
     problem: Any,
-    state: State,
+    strategy: Strategy | None = None,
     *,
-    total: int,
-    chunk: int,
-    batched: bool,
-    seeds: list[int],
-    done: int = 0,
-    history: list[dict] | None = None,
+    seed: int | Sequence[int] = 0,
+    params: Any | Sequence[Any] | None = None,
+    iterations: int | None = None,
+    max_evaluations: int | None = None,
     target: float | None = None,
+    patience: int | None = None,
+    max_seconds: float | None = None,
+    callback: Callable[[Any, Progress], Any] | None = None,
+    stop: StopRule | Sequence[StopRule] | None = None,
+    chunk_size: int | None = None,
     progress: bool = False,
-    on_chunk: Callable[[State, int], None] | None = None,
-    checkpointer: Any | None = None,
+    checkpointing: Checkpointing | None = None,
 ) -> Result:
-    """Run chunks from iteration ``done`` to ``total`` (used by minimize and by resume).
+    """Minimise ``problem`` with an EACO colony (or any strategy of the library).
 
-    ``checkpointer`` (a :class:`eaco_jax.checkpoint.RunCheckpointer`) is offered every chunk
-    boundary; it saves when due and always after the last chunk.
+    Args:
+      problem: a graph, path or continuous problem (see :mod:`eaco_jax.problems`).
+      strategy: the colony; default :func:`default_strategy` for the problem's kind.
+      seed: an int, or a sequence of ints to run several seeds as one vmapped call.
+      params: hyper-parameters (default ``strategy.default_params(problem)``), or a list of
+        Params to run every setting x every seed as one vmapped call (row ``r`` is
+        ``params[r // len(seeds)]`` with seed ``seeds[r % len(seeds)]``).
+      iterations / max_evaluations: the budget (one of them; default 100 iterations).
+      target / patience / max_seconds / callback / stop: stop rules, checked after every
+        chunk (see :mod:`eaco_jax.driver.stop`): every row's best <= target; every row
+        stagnated ``patience`` iterations; compute seconds (compilation excluded);
+        ``callback(state, progress)`` returned True; any further ``rule(state, progress)``.
+      chunk_size: iterations per compiled call (default: about 20 chunks per run).
+      progress: show a progress bar (tqdm).
+      checkpointing: save (and resume) the run, see :class:`Checkpointing`.
     """
-    history = [] if history is None else history
-    compiled: Any = None
-    compile_seconds = 0.0
-    run_seconds = 0.0
+    strategy = default_strategy(problem) if strategy is None else strategy
+    seeds = checked_seeds(strategy, problem, seed)
+    problem = strategy.prepare(problem)
+    total = resolve_iterations(strategy, iterations, max_evaluations)
+    every = checkpointing.every if checkpointing is not None else None
+    chunk = default_chunk(total, chunk_size, every)
+    rows = len(seeds) * (len(params) if isinstance(params, list | tuple) else 1)
+    rules = stop_rules(target, patience, max_seconds, callback, stop)
+    state = initial_state(strategy, problem, seeds, params)
+    row_seeds = seeds * (rows // len(seeds))
+    return run(strategy, problem, state, total=total, chunk=chunk, seeds=row_seeds,
+               rules=rules, progress=progress, checkpointing=checkpointing)
+
+
+def run(
+    strategy: Strategy,
+    problem: Any,
+    state: State,
+    *,
+    total: int,
+    chunk: int,
+    seeds: list[int],
+    rules: list[tuple[str, StopRule]] | None = None,
+    progress: bool = False,
+    checkpointing: Checkpointing | None = None,
+) -> Result:
+    """Run ``state`` (one row per entry of ``seeds``) in chunks to ``total`` iterations, or
+    from the checkpoint of this same run in ``checkpointing.directory``."""
+    batched = len(seeds) > 1
+    done, history = 0, []
+    checkpointer = None
+    if checkpointing is not None:
+        from eaco_jax.driver.checkpoint import RunCheckpointer, run_identity, strong_types
+
+        state = strong_types(state)
+        identity = run_identity(problem, strategy, state.params, seeds, total, chunk)
+        checkpointer = RunCheckpointer(
+            checkpointing.directory, identity, every=checkpointing.every,
+            seconds=checkpointing.seconds, keep=checkpointing.keep,
+            run_info=checkpointing.run_info, batched=batched,
+        )
+        restored = checkpointer.restore(state)
+        if restored is not None:
+            state, done, history = restored.state, restored.done, [restored.history]
+            if restored.finished:
+                total = done
+
+    rules = rules or []
+    compile_seconds = run_seconds = 0.0
     start = done
+    reason = "iterations"
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -369,14 +379,10 @@ def run_chunks(
     try:
         while done < total:
             length = min(chunk, total - done)
-            active = jnp.int32(length)
-            if compiled is None:
-                t0 = time.perf_counter()
-                fn = make_chunk_fn(strategy, chunk, batched)
-                compiled = fn.lower(problem, state, active).compile()
-                compile_seconds += time.perf_counter() - t0
+            compiled, seconds = compiled_chunk(strategy, chunk, batched, problem, state)
+            compile_seconds += seconds
             t0 = time.perf_counter()
-            state, hist = compiled(problem, state, active)
+            state, hist = compiled(problem, state, jnp.int32(length))
             jax.block_until_ready(state)
             run_seconds += time.perf_counter() - t0
             hist = jax.device_get(hist)
@@ -386,21 +392,21 @@ def run_chunks(
             if bar is not None:
                 bar.update(length)
                 bar.set_postfix(best=float(np.min(np.asarray(state.best_cost))))
-            if on_chunk is not None:
-                on_chunk(state, done)
-            reached = target is not None and bool(np.all(np.asarray(state.best_cost) <= target))
+            info = Progress(done, run_seconds, compile_seconds)
+            fired_names = [name for name, rule in rules if rule(state, info)]  # every rule sees
+            fired = bool(fired_names)  # every chunk (callbacks too)
+            if fired:
+                reason = fired_names[0]
             if checkpointer is not None:
-                checkpointer.after_chunk(state, done, history, finished=reached or done >= total)
-            if reached:
+                checkpointer.after_chunk(state, done, history, finished=fired or done >= total)
+            if fired:
                 break
     finally:
         if bar is not None:
             bar.close()
 
     axis = 1 if batched else 0
-    merged = {
-        k: np.concatenate([np.asarray(h[k]) for h in history], axis=axis) for k in history[0]
-    } if history else {}
+    merged = merge_history(history, axis)
     iters_run = next(iter(merged.values())).shape[axis] if merged else 0
     return Result(
         best_solution=np.asarray(state.best_solution),
@@ -415,4 +421,5 @@ def run_chunks(
         problem=problem,
         strategy=strategy,
         seeds=seeds,
+        stop_reason=reason,
     )

@@ -1,7 +1,11 @@
-"""Colony strategies: one module per algorithm."""
-from eaco_jax.strategies.continuous_eaco import (  # noqa: F401
-    ContinuousEACO,
-    ContinuousParams,
-    ContinuousState,
-)
-from eaco_jax.strategies.graph_eaco import GraphEACO, GraphParams, GraphState  # noqa: F401
+"""Colony strategies: one module per algorithm, each a pure init/ask/tell over a pytree state."""
+
+from eaco_jax.strategies.base import State, Strategy
+from eaco_jax.strategies.continuous_eaco import ContinuousEACO, ContinuousParams, ContinuousState
+from eaco_jax.strategies.graph_eaco import GraphEACO, GraphParams, GraphState
+from eaco_jax.strategies.path_eaco import PathEACO, PathParams, PathState
+
+__all__ = [
+    "State", "Strategy", "ContinuousEACO", "ContinuousParams", "ContinuousState", "GraphEACO",
+    "GraphParams", "GraphState", "PathEACO", "PathParams", "PathState",
+]

@@ -1,22 +1,29 @@
-"""The strategy contract every colony in eaco_jax follows (optax / evosax style).
+"""The strategy contract every colony in eaco_jax follows (evosax / optax style).
 
 A strategy is a frozen, hashable object holding *static* configuration only (number of ants,
-which mechanisms exist at all, array shapes). Everything that may change between runs of the
+which operators exist at all, array shapes). Everything that may change between runs of the
 same compiled program - hyper-parameters, pheromone, archive, PRNG key - lives in a
-:class:`State` pytree, so `jit`, `vmap` (over seeds or hyper-parameters) and `lax.scan` (over
-iterations) apply to the pure functions
+:class:`State` pytree. The problem is passed in, never stored, so a batch of states (seeds or
+hyper-parameter settings, vmapped) shares one copy of the problem's data::
 
-    state = strategy.init(key, problem, params)
-    solutions, state = strategy.ask(key, state)
-    state = strategy.tell(state, solutions, fitness)
+    state = strategy.init(key, problem, params)            # evaluates nothing
+    solutions, state = strategy.ask(key, state, problem)
+    fitness = problem.evaluate(solutions)                   # or your own evaluator
+    state, metrics = strategy.tell(state, solutions, fitness, problem)
 
-``fitness`` is whatever ``problem.evaluate(solutions)`` returns (see :mod:`eaco_jax.problems.base`).
-The hyper-parameters are stored in ``state.params`` so a batch of states built from a batch of
-params is a vmappable sweep.
+``fitness`` is what ``problem.evaluate`` returns: ``(m,)`` costs for graph and path problems,
+an :class:`~eaco_jax.problems.base.Evaluation` (objective and violation) for continuous ones.
+It may come from anywhere (numpy, a simulator, a lab): ``init`` evaluates nothing, so a loop
+of ask -> your evaluator -> tell drives every strategy. ``metrics`` is a dict of scalars that
+the driver records as the run's history; telemetry lives there, not in the state.
 
-Subclasses implement ``_init``, ``_ask`` and ``_tell``; the base keeps the best-so-far record,
-the iteration / evaluation counters and the per-iteration statistics in one place, maps NaN
-costs to +inf once, and jits the public methods with ``self`` static.
+Hyper-parameters are a ``Params`` pytree (a ``flax.struct`` dataclass with its defaults on
+the class; switches are booleans) stored in ``state.params``, so a batch of states built
+from a batch of params is a vmappable sweep.
+
+Subclasses implement ``_init``, ``_ask`` and ``_tell``; the base keeps the best-so-far
+bookkeeping helpers, the iteration / evaluation counters and the colony statistics in one
+place, maps NaN costs to +inf once, and jits the public methods with ``self`` static.
 """
 
 from __future__ import annotations
@@ -32,7 +39,8 @@ from flax import struct
 Array = jax.Array
 PyTree = Any
 
-HISTORY_FIELDS = ("best_cost", "iter_best_cost", "iter_mean_cost", "diversity")
+#: metrics every strategy reports each iteration (the driver's history columns)
+BASE_METRICS = ("best_cost", "iter_best_cost", "iter_mean_cost")
 
 
 @struct.dataclass
@@ -43,11 +51,9 @@ class State:
       key: the run's PRNG key stream; the driver splits one key per iteration from it.
       params: the strategy's hyper-parameters (a traced pytree, vmappable).
       iteration: completed ask/tell rounds.
-      evaluations: solutions evaluated so far.
+      evaluations: solutions charged so far (the colony, plus what a strategy charges itself).
       best_solution: best solution found so far (minimisation).
-      best_cost: its scalar cost (for constrained problems: its objective value).
-      iter_best_cost / iter_mean_cost: statistics of the last iteration's ants.
-      diversity: population diversity of the last iteration (strategy-defined, in [0, 1]).
+      best_cost: its scalar cost (for constrained problems: its objective value if feasible).
       stagnation: iterations since best_cost last improved.
     """
 
@@ -57,27 +63,33 @@ class State:
     evaluations: Array
     best_solution: Array
     best_cost: Array
-    iter_best_cost: Array
-    iter_mean_cost: Array
-    diversity: Array
     stagnation: Array
 
 
 def base_fields(key: Array, params: PyTree, solution_template: Array) -> dict[str, Any]:
     """Initial values of the :class:`State` fields, for a subclass's ``_init``."""
-    f32 = jnp.float32
     return dict(
         key=key,
         params=params,
         iteration=jnp.zeros((), jnp.int32),
         evaluations=jnp.zeros((), jnp.int32),
         best_solution=solution_template,
-        best_cost=jnp.array(jnp.inf, f32),
-        iter_best_cost=jnp.array(jnp.inf, f32),
-        iter_mean_cost=jnp.array(jnp.inf, f32),
-        diversity=jnp.zeros((), f32),
+        best_cost=jnp.array(jnp.inf, jnp.float32),
         stagnation=jnp.zeros((), jnp.int32),
     )
+
+
+def as_params(params: PyTree, dtype: Any = jnp.float32) -> PyTree:
+    """``params`` with every leaf an array: booleans stay bool, numbers become ``dtype``.
+
+    Params dataclasses hold Python defaults; this is where they become traced leaves.
+    """
+
+    def leaf(x: Any) -> Array:
+        a = jnp.asarray(x)
+        return a if a.dtype == jnp.bool_ else jnp.asarray(x, dtype)
+
+    return jax.tree.map(leaf, params)
 
 
 def _jit_method(fn):
@@ -90,41 +102,49 @@ class Strategy:
     """Base class. Subclasses are ``@dataclasses.dataclass(frozen=True)`` with static fields.
 
     Subclass hooks:
-      default_params(problem) -> Params pytree
+      default_params(problem) -> Params pytree (arrays; see :func:`as_params`)
       _init(key, problem, params) -> State
-      _ask(key, state) -> (solutions, state)
-      _tell(state, solutions, fitness) -> State   (update best-so-far via ``record_best``)
-      scalar_cost(fitness) -> (m,) float32 used for statistics and the best-so-far record.
+      _ask(key, state, problem) -> (solutions, state)
+      _tell(state, solutions, fitness, problem) -> (state, metrics)
+        (update the best-so-far, e.g. with :func:`record_best`; the base adds the counters
+        and :data:`BASE_METRICS`)
+      scalar_cost(fitness) -> (m,) float32 used for the colony statistics.
     """
 
     num_ants: int = 40
-    #: which problem kinds the strategy solves ("graph" or "continuous")
+    #: which problem kinds the strategy solves ("graph", "path" or "continuous")
     problem_kind: ClassVar[str] = ""
 
     # ----------------------------------------------------------------- subclass hooks
-    def default_params(self, problem: Any) -> PyTree:
+    def default_params(self, problem: Any = None) -> PyTree:
         raise NotImplementedError(f"{type(self).__name__} must define default_params")
 
     def _init(self, key: Array, problem: Any, params: PyTree) -> State:
         raise NotImplementedError(f"{type(self).__name__} must define _init")
 
-    def _ask(self, key: Array, state: State) -> tuple[Array, State]:
+    def _ask(self, key: Array, state: State, problem: Any) -> tuple[Array, State]:
         raise NotImplementedError(f"{type(self).__name__} must define _ask")
 
-    def _tell(self, state: State, solutions: Array, fitness: PyTree) -> State:
+    def _tell(
+        self, state: State, solutions: Array, fitness: PyTree, problem: Any
+    ) -> tuple[State, dict[str, Array]]:
         raise NotImplementedError(f"{type(self).__name__} must define _tell")
 
     def scalar_cost(self, fitness: PyTree) -> Array:
         """Per-ant scalar cost used for statistics (default: fitness itself)."""
         return fitness
 
-    def stats(self, state: State) -> dict[str, Array]:
-        """Per-iteration statistics the driver records as history (extend in subclasses)."""
-        return {name: getattr(state, name) for name in HISTORY_FIELDS}
+    def prepare(self, problem: Any) -> Any:
+        """The problem as this strategy needs it (checked, converted); called by ``init``."""
+        return problem
 
     # ----------------------------------------------------------------- public, jitted
     def init(self, key: Array, problem: Any, params: PyTree | None = None) -> State:
-        """Fresh colony state for ``problem``. ``params=None`` takes ``default_params``."""
+        """Fresh colony state for ``problem`` (nothing is evaluated).
+
+        ``params=None`` takes ``default_params(problem)``.
+        """
+        problem = self.prepare(problem)
         if params is None:
             params = self.default_params(problem)
         return self._init_jit(key, problem, params)
@@ -134,24 +154,34 @@ class Strategy:
         return self._init(key, problem, params)
 
     @_jit_method
-    def ask(self, key: Array, state: State) -> tuple[Array, State]:
+    def ask(self, key: Array, state: State, problem: Any) -> tuple[Array, State]:
         """Construct one colony of candidate solutions (shape ``(num_ants, ...)``)."""
-        return self._ask(key, state)
+        return self._ask(key, state, problem)
 
     @_jit_method
-    def tell(self, state: State, solutions: Array, fitness: PyTree) -> State:
-        """Update the colony with the evaluated ``solutions``; NaN costs count as +inf."""
+    def tell(
+        self, state: State, solutions: Array, fitness: PyTree, problem: Any
+    ) -> tuple[State, dict[str, Array]]:
+        """Update the colony with the evaluated ``solutions``; NaN costs count as +inf.
+
+        Returns the new state and this iteration's metrics (scalars).
+        """
         fitness = jax.tree.map(lambda f: jnp.where(jnp.isnan(f), jnp.inf, f), fitness)
-        state = self._tell(state, solutions, fitness)
+        state, metrics = self._tell(state, solutions, fitness, problem)
         cost = self.scalar_cost(fitness)
         finite = jnp.isfinite(cost)
         n_finite = jnp.maximum(finite.sum(), 1)
-        return state.replace(
+        state = state.replace(
             iteration=state.iteration + 1,
             evaluations=state.evaluations + solutions.shape[0],
-            iter_best_cost=jnp.min(cost).astype(jnp.float32),
-            iter_mean_cost=(jnp.where(finite, cost, 0.0).sum() / n_finite).astype(jnp.float32),
         )
+        base = {
+            "best_cost": state.best_cost,
+            "iter_best_cost": jnp.min(cost).astype(jnp.float32),
+            "iter_mean_cost": (jnp.where(finite, cost, 0.0).sum() / n_finite).astype(
+                jnp.float32),
+        }
+        return state, {**base, **metrics}
 
 
 def record_best(state: State, solutions: Array, cost: Array) -> State:

@@ -46,12 +46,13 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.ops import constraints as ch
 from eaco_jax.ops.chaos import logistic_step
 from eaco_jax.ops.real_ops import laplace_crossover_sample, power_mutation_sample
 from eaco_jax.problems.base import Evaluation
 from eaco_jax.problems.constrained import ConstrainedProblem
-from eaco_jax.strategies.base import HISTORY_FIELDS, State, Strategy, base_fields
+from eaco_jax.strategies.base import State, Strategy, as_params, base_fields
 
 Array = jax.Array
 
@@ -86,8 +87,7 @@ class ContinuousParams:
 
 @struct.dataclass
 class ContinuousState(State):
-    problem: ConstrainedProblem
-    archive_x: Array
+    archive_x: Array  # (k, n) ranked archive (the pheromone); unevaluated entries have f = inf
     archive_f: Array
     archive_v: Array
     epsilon0: Array
@@ -127,71 +127,59 @@ class ContinuousEACO(Strategy):
     def _order(self, f: Array, v: Array, params: ContinuousParams, eps: Array) -> Array:
         return ch.rank_order(f, v, self.constraint_method, eps, params.penalty)
 
-    def _check_problem(self, problem: Any) -> ConstrainedProblem:
-        """The problem as a ConstrainedProblem (others convert through ``as_constrained()``)."""
-        if not isinstance(problem, ConstrainedProblem):
-            if not hasattr(problem, "as_constrained"):
-                raise TypeError(
-                    "ContinuousEACO needs an eaco_jax.problems.ConstrainedProblem (or a problem "
-                    f"with as_constrained()), got {type(problem).__name__}"
-                )
-            problem = problem.as_constrained()
-        constrained = problem.num_inequality + problem.num_equality > 0
+    def prepare(self, problem: Any) -> Any:
+        """Check that ``problem`` is continuous (box bounds, ``evaluate`` -> Evaluation) and
+        that the gradient modes in use can differentiate it."""
+        if getattr(problem, "kind", None) != "continuous" or not hasattr(problem, "lower"):
+            raise ProblemError(
+                "ContinuousEACO needs a continuous problem with box bounds (an "
+                "eaco_jax.problems.ConstrainedProblem, a gait problem, ...), got "
+                f"{type(problem).__name__}")
+        constrained = _num_constraints(problem) > 0
         if not getattr(problem, "differentiable", True) and (
             self.refine_ants or (self.repair_steps and constrained)
         ):
-            raise ValueError(
+            raise ConfigError(
                 f"{problem.name!r} is not differentiable (a simulation); use "
                 "ContinuousEACO(refine_ants=0, repair_steps=0)"
             )
         return problem
 
-    def init(self, key: Array, problem: Any, params: ContinuousParams | None = None) -> State:
-        return super().init(key, self._check_problem(problem), params)
-
     # ----------------------------------------------------------------- init
-    def _init(self, key: Array, problem: ConstrainedProblem,
-              params: ContinuousParams) -> ContinuousState:
+    def _init(self, key: Array, problem: Any, params: ContinuousParams) -> ContinuousState:
+        """Archive members drawn uniformly in the box, not evaluated (f = violation = +inf):
+        the colony's first ants replace them, and epsilon(0) is set at the first ``tell``."""
         dtype = problem.dtype
-        params = jax.tree.map(lambda a: jnp.asarray(a, dtype), params)
+        params = as_params(params, dtype)
         k_arch, k_chaos, k_arch2, k_run = jax.random.split(key, 4)
         lo, hi = problem.lower, problem.upper
         x = lo + (hi - lo) * jax.random.uniform(k_arch, (self.archive_size, problem.dim), dtype)
-        ev = problem.evaluate(x)
-        f = jnp.where(jnp.isnan(ev.f), jnp.inf, ev.f)
-        v = jnp.where(jnp.isnan(ev.violation), jnp.inf, ev.violation)
-        eps0 = ch.initial_epsilon(v, params.eps_fraction) if self.constraint_method == "epsilon" \
-            else jnp.zeros((), dtype)
-        order = self._order(f, v, params, eps0)
-        x, f, v = x[order], f[order], v[order]
-        best = ch.rank_order(f, v, "deb")[0]
-        base = base_fields(k_run, params, x[best])
-        base["evaluations"] = jnp.asarray(self.archive_size, jnp.int32)
-        base["best_cost"] = jnp.where(v[best] > 0, jnp.inf, f[best]).astype(jnp.float32)
+        inf = jnp.full((self.archive_size,), jnp.inf, dtype)
         return ContinuousState(
-            **base,
-            problem=problem,
+            **base_fields(k_run, params, x[0]),
             archive_x=x,
-            archive_f=f,
-            archive_v=v,
-            epsilon0=jnp.asarray(eps0, dtype),
-            epsilon=jnp.asarray(eps0, dtype),
+            archive_f=inf,
+            archive_v=inf,
+            epsilon0=jnp.zeros((), dtype),
+            epsilon=jnp.zeros((), dtype),
             chaos=jax.random.uniform(k_chaos, (self.num_ants, problem.dim), dtype, 0.01, 0.99),
             archive_chaos=jax.random.uniform(
                 k_arch2, (self.archive_size, problem.dim), dtype, 0.01, 0.99),
-            best_f=f[best],
-            best_violation=v[best],
+            best_f=jnp.asarray(jnp.inf, dtype),
+            best_violation=jnp.asarray(jnp.inf, dtype),
             target_evaluations=jnp.asarray(-1, jnp.int32),
             target_iteration=jnp.asarray(-1, jnp.int32),
         )
 
     # ----------------------------------------------------------------- ask
-    def _ask(self, key: Array, state: ContinuousState) -> tuple[Array, ContinuousState]:
-        problem, p = state.problem, state.params
+    def _ask(
+        self, key: Array, state: ContinuousState, problem: Any
+    ) -> tuple[Array, ContinuousState]:
+        p = state.params
         lo, hi = problem.lower, problem.upper
         m, k, n = self.num_ants, self.archive_size, problem.dim
         dtype = problem.dtype
-        state = self._chaotic_restart(state)
+        state = self._chaotic_restart(state, problem)
         arch = state.archive_x
         keys = jax.random.split(key, 10)
 
@@ -246,43 +234,45 @@ class ContinuousEACO(Strategy):
         # gradient repair of infeasible ants
         margin = p.repair_margin * jnp.mean(hi - lo)
         enabled = jax.random.uniform(ck2[1], (m,), dtype) < p.p_repair
-        x, steps = jax.vmap(
-            lambda a, e: ch.gradient_repair(problem, a, self.repair_steps, margin, e))(x, enabled)
-        extra = extra + jnp.sum(steps).astype(jnp.int32)
+        if self.repair_steps > 0 and _num_constraints(problem) > 0:
+            x, steps = jax.vmap(lambda a, e: ch.gradient_repair(
+                problem, a, self.repair_steps, margin, e))(x, enabled)
+            extra = extra + jnp.sum(steps).astype(jnp.int32)
         return x, state.replace(chaos=z, evaluations=state.evaluations + extra)
 
-    def _chaotic_restart(self, state: ContinuousState) -> ContinuousState:
+    def _chaotic_restart(self, state: ContinuousState, problem: Any) -> ContinuousState:
         """After ``restart_patience`` iterations without progress, re-seed the whole archive.
 
-        The ``k`` members are placed by the archive's logistic-map sequences over the whole box
-        and evaluated here (charged). The best-so-far stays in ``best_solution`` / ``best_f``
-        (elitism of the result); the archive forgets it so the colony can leave its basin
-        (keeping it there let it pull the colony back into the same local optimum on g13).
+        The ``k`` members are placed by the archive's logistic-map sequences over the whole box,
+        unevaluated (f = violation = +inf), so the next ants replace them. The best-so-far stays
+        in ``best_solution`` / ``best_f`` (elitism of the result); the archive forgets it so the
+        colony can leave its basin (keeping it there let it pull the colony back into the same
+        local optimum on g13).
         """
-        p, problem = state.params, state.problem
+        p = state.params
         lo, hi = problem.lower, problem.upper
         z = logistic_step(state.archive_chaos)
         restart = state.stagnation >= p.restart_patience
 
         def reseed(s: ContinuousState) -> ContinuousState:
-            x = lo + z * (hi - lo)
-            ev = s.problem.evaluate(x)
-            f = jnp.where(jnp.isnan(ev.f), jnp.inf, ev.f)
-            v = jnp.where(jnp.isnan(ev.violation), jnp.inf, ev.violation)
-            order = self._order(f, v, p, s.epsilon)
-            return s.replace(archive_x=x[order], archive_f=f[order], archive_v=v[order],
-                             stagnation=jnp.zeros_like(s.stagnation),
-                             evaluations=s.evaluations + self.archive_size)
+            inf = jnp.full_like(s.archive_f, jnp.inf)
+            return s.replace(archive_x=lo + z * (hi - lo), archive_f=inf, archive_v=inf,
+                             stagnation=jnp.zeros_like(s.stagnation))
 
         state = jax.lax.cond(restart, reseed, lambda s: s, state)
         return state.replace(archive_chaos=z)
 
     # ----------------------------------------------------------------- tell
-    def _tell(self, state: ContinuousState, solutions: Array,
-              fitness: Evaluation) -> ContinuousState:
+    def _tell(
+        self, state: ContinuousState, solutions: Array, fitness: Evaluation, problem: Any
+    ) -> tuple[ContinuousState, dict[str, Array]]:
         p = state.params
         f = fitness.f.astype(state.archive_f.dtype)
         v = fitness.violation.astype(state.archive_v.dtype)
+        if self.constraint_method == "epsilon":  # epsilon(0) from the first evaluated ants
+            first = ch.initial_epsilon(v, p.eps_fraction).astype(state.epsilon0.dtype)
+            state = state.replace(
+                epsilon0=jnp.where(state.iteration == 0, first, state.epsilon0))
         eps = ch.epsilon_schedule(state.iteration + 1, state.epsilon0, p.eps_cutoff,
                                   p.eps_exponent).astype(state.epsilon.dtype)
         if self.constraint_method != "epsilon":
@@ -304,15 +294,15 @@ class ContinuousEACO(Strategy):
         best_v = jnp.where(improved, v[i], state.best_violation)
         evaluations = state.evaluations + solutions.shape[0]
         target_evals, target_iter = state.target_evaluations, state.target_iteration
-        f_star = state.problem.f_star
+        f_star = getattr(problem, "f_star", None)
         if f_star is not None:
             hit = (best_v <= 0) & (best_f - f_star <= TARGET_TOLERANCE) & (target_evals < 0)
             target_evals = jnp.where(hit, evaluations, target_evals)
             target_iter = jnp.where(hit, state.iteration + 1, target_iter)
-        lo, hi = state.problem.lower, state.problem.upper
+        lo, hi = problem.lower, problem.upper
         ax = all_x[keep]
         diversity = jnp.clip(jnp.mean(jnp.std(ax, axis=0) / (hi - lo)) * 12**0.5, 0.0, 1.0)
-        return state.replace(
+        state = state.replace(
             archive_x=ax,
             archive_f=all_f[keep],
             archive_v=all_v[keep],
@@ -322,20 +312,25 @@ class ContinuousEACO(Strategy):
             best_solution=jnp.where(improved, solutions[i].astype(ax.dtype), state.best_solution),
             best_cost=jnp.where(best_v > 0, jnp.inf, best_f).astype(jnp.float32),
             stagnation=jnp.where(progress, 0, state.stagnation + 1),
-            diversity=diversity.astype(jnp.float32),
             target_evaluations=target_evals,
             target_iteration=target_iter,
         )
+        metrics = {
+            "diversity": diversity.astype(jnp.float32),
+            "best_f": best_f,
+            "best_violation": best_v,
+            "evaluations": evaluations,
+            "epsilon": eps,
+        }
+        return state, metrics
 
     def scalar_cost(self, fitness: Evaluation) -> Array:
         """Objective of feasible ants, +inf for infeasible ones (iteration statistics)."""
         return jnp.where(fitness.violation > 0, jnp.inf, fitness.f).astype(jnp.float32)
 
-    def stats(self, state: ContinuousState) -> dict[str, Array]:
-        out = {name: getattr(state, name) for name in HISTORY_FIELDS}
-        out.update(best_f=state.best_f, best_violation=state.best_violation,
-                   evaluations=state.evaluations, epsilon=state.epsilon)
-        return out
+
+def _num_constraints(problem: Any) -> int:
+    return int(getattr(problem, "num_inequality", 0)) + int(getattr(problem, "num_equality", 0))
 
 
 # --------------------------------------------------------------------------- refinement

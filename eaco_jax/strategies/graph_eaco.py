@@ -19,7 +19,7 @@ as ACOTSP does: Eq. 2 over the allowed candidates, the best allowed node when al
 are tabu; the pheromone-greedy ant of Eq. 6 likewise); ``candidate_lists=False`` applies Eq. 2
 over all nodes at O(n) more work per step.
 
-Every mechanism has a 0/1 switch in :class:`GraphParams` (traced, so ablations and sweeps vmap).
+Every mechanism has a boolean switch in :class:`GraphParams` (traced, so ablations and sweeps vmap).
 Operators that cost compute (crossover, mutation, local search) are static fields: "none"
 removes them from the compiled program.
 
@@ -65,7 +65,7 @@ from eaco_jax.ops.construction import (
 )
 from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
-from eaco_jax.strategies.base import State, Strategy, base_fields, record_best
+from eaco_jax.strategies.base import State, Strategy, as_params, base_fields, record_best
 
 Array = jax.Array
 
@@ -76,62 +76,53 @@ MUTATIONS = ("inversion", "swap", "none")
 
 @struct.dataclass
 class GraphParams:
-    """Traced hyper-parameters. Switches are 0.0 (off) / 1.0 (on)."""
+    """Traced hyper-parameters; defaults are those with local search (see
+    :meth:`GraphEACO.default_params` for the values without it). Switches are booleans."""
 
-    alpha: Array  # pheromone weight in Eq. 2
-    beta: Array  # heuristic weight in Eq. 2
-    rho: Array  # evaporation rate (local update, elitist update)
-    q0: Array  # pseudo-random proportional rule
-    alpha_g: Array  # global evaporation of Eq. 71
-    sigma: Array  # number of elitist ants, Eq. 74
-    q: Array  # deposit factor Q
-    p_best: Array  # MMAS: probability of rebuilding the best tour at the limits
-    branching: Array  # MMAS tau_min: average choices per step (0: n/2 - 1)
-    chaos_strength: Array  # selection factor in [1 - s, 1 + s]
-    p_crossover: Array
-    p_mutation: Array
-    restart_after: Array  # iterations without improvement before a trail restart
-    restart_branching: Array  # ... and only once the trails' lambda-branching factor is
-    # below this (converged; ACOTSP's 1.00001); 0: no convergence test
-    use_restart_best: Array  # MMAS: deposit and count stagnation on the best tour since the
-    # last restart instead of the best-so-far tour
-    gb_every: Array  # global update uses the best-so-far tour every gb_every iterations
-    stagnation_window: Array  # evaporation schedule: iterations to full slow-down
-    evaporation_slowdown: Array  # evaporation schedule strength in [0, 1)
-    use_local_update: Array
-    use_global_update: Array
-    use_elitist: Array
-    use_deposit_condition: Array
-    use_adaptive_weight: Array
-    use_bounds: Array
-    use_chaos: Array
-    use_evaporation_schedule: Array
-    use_restart: Array
-    use_adaptive_rates: Array
-    init_at_tau_max: Array
+    alpha: Array = 1.0  # pheromone weight in Eq. 2
+    beta: Array = 2.0  # heuristic weight in Eq. 2
+    rho: Array = 0.2  # evaporation rate (local update, elitist update)
+    q0: Array = 0.0  # pseudo-random proportional rule
+    alpha_g: Array = 0.2  # global evaporation of Eq. 71
+    sigma: Array = 6.0  # number of elitist ants, Eq. 74
+    q: Array = 1.0  # deposit factor Q
+    p_best: Array = 0.05  # MMAS: probability of rebuilding the best tour at the limits
+    branching: Array = 0.0  # MMAS tau_min: average choices per step (0: n/2 - 1)
+    chaos_strength: Array = 0.1  # selection factor in [1 - s, 1 + s]
+    p_crossover: Array = 0.6
+    p_mutation: Array = 0.5
+    restart_after: Array = 50.0  # iterations without improvement before a trail restart
+    restart_branching: Array = 0.0  # ... and only once the trails' lambda-branching factor
+    # is below this (converged; ACOTSP's 1.00001); 0: no convergence test
+    gb_every: Array = 3.0  # global update uses the best-so-far tour every gb_every iterations
+    stagnation_window: Array = 50.0  # evaporation schedule: iterations to full slow-down
+    evaporation_slowdown: Array = 0.5  # evaporation schedule strength in [0, 1)
+    use_restart_best: Array = False  # MMAS: deposit and count stagnation on the best tour
+    # since the last restart instead of the best-so-far tour
+    use_local_update: Array = False  # Eq. 68-70
+    use_global_update: Array = True  # Eq. 71
+    use_elitist: Array = False  # Eq. 73-74
+    use_deposit_condition: Array = False  # Eq. 3-4
+    use_adaptive_weight: Array = False  # Eq. 5-6
+    use_bounds: Array = True  # Eq. 7
+    use_chaos: Array = False  # logistic-map perturbation of the choice weights
+    use_evaporation_schedule: Array = False
+    use_restart: Array = True
+    use_adaptive_rates: Array = True  # self-adaptive crossover / mutation rates
+    init_at_tau_max: Array = True
 
 
 @struct.dataclass
 class GraphState(State):
     tau: Array  # (n, n) pheromone
-    log_eta: Array  # (n, n) heuristic cache log(1/d)
-    dist: Array  # (n, n)
-    neighbors: Array  # (n, k) candidate lists for construction and local search
     chaos: Array  # (m, n) logistic-map variables
-    tau_min: Array
-    tau_max: Array
-    rho_t: Array  # evaporation rate in force (stagnation schedule)
-    adaptive_rho: Array  # mean Eq. 5 weight of the last iteration
+    iter_best_cost: Array  # best tour length of the last iteration (Eq. 3-4)
     pheromone_tour_length: Array  # L_pn of the last iteration (Eq. 6 tour; with the adaptive
     # weight off, the greedy tour on the colony weights, which nothing uses)
-    p_crossover_t: Array  # mean self-adaptive crossover rate of the last iteration
-    p_mutation_t: Array
     since_improvement: Array  # restart counter
     restart_best_solution: Array  # best tour since the last restart
     restart_best_cost: Array
-    branching_factor: Array  # lambda-branching factor of the trails (lambda = 0.05)
     restarts: Array
-    nn_length: Array
 
 
 def _f(x: float) -> Array:
@@ -171,80 +162,47 @@ class GraphEACO(Strategy):
 
     # ------------------------------------------------------------------ params
     def default_params(self, problem: Any = None) -> GraphParams:
-        with_ls = self.local_search != "none"
-        k = getattr(problem, "neighbors", None)
-        k = DEFAULT_NEIGHBORS if k is None else int(k.shape[1])
-        return GraphParams(
-            alpha=_f(1.0),
-            beta=_f(2.0),
-            rho=_f(0.2 if with_ls else 0.02),
-            q0=_f(0.0),
-            alpha_g=_f(0.2 if with_ls else 0.02),
-            sigma=_f(6.0),
-            q=_f(1.0),
-            p_best=_f(0.05),
-            branching=_f(0.0 if with_ls else float((k + 1) // 2)),
-            chaos_strength=_f(0.1),
-            p_crossover=_f(0.6),
-            p_mutation=_f(0.5),
-            restart_after=_f(50.0 if with_ls else 250.0),
-            restart_branching=_f(0.0 if with_ls else 1.00001),
-            use_restart_best=_f(0.0 if with_ls else 1.0),
-            gb_every=_f(3.0 if with_ls else 25.0),
-            stagnation_window=_f(50.0),
-            evaporation_slowdown=_f(0.5),
-            use_local_update=_f(0.0),
-            use_global_update=_f(1.0),
-            use_elitist=_f(0.0),
-            use_deposit_condition=_f(0.0),
-            use_adaptive_weight=_f(0.0),
-            use_bounds=_f(1.0),
-            use_chaos=_f(0.0),
-            use_evaporation_schedule=_f(0.0),
-            use_restart=_f(1.0),
-            use_adaptive_rates=_f(1.0),
-            init_at_tau_max=_f(1.0),
-        )
+        """The defaults; without local search, MMAS as ACOTSP runs it (module docstring)."""
+        params = GraphParams()
+        if self.local_search == "none":
+            k = getattr(problem, "neighbors", None)
+            k = DEFAULT_NEIGHBORS if k is None else int(k.shape[1])
+            params = params.replace(
+                rho=0.02, alpha_g=0.02, branching=float((k + 1) // 2), restart_after=250.0,
+                restart_branching=1.00001, use_restart_best=True, gb_every=25.0)
+        return as_params(params)
 
     # ------------------------------------------------------------------ init
+    def prepare(self, problem: Any) -> Any:
+        dist = getattr(problem, "dist", None)
+        shape = getattr(dist, "shape", ())
+        if len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3:
+            raise ProblemError(
+                f"graph problem needs an (n, n) distance matrix, n >= 3; got {shape}")
+        return problem
+
     def _init(self, key: Array, problem: Any, params: GraphParams) -> GraphState:
         dist = jnp.asarray(problem.dist, jnp.float32)
         n = dist.shape[0]
-        if dist.ndim != 2 or dist.shape[1] != n or n < 3:
-            raise ProblemError(
-                f"graph problem needs an (n, n) distance matrix, n >= 3; got {dist.shape}")
-        neighbors = jnp.asarray(problem.neighbors, jnp.int32)
         log_eta = heuristic_log_eta(dist)
         k_chaos, key = jax.random.split(key)
         # nearest-neighbour tour from node 0: greedy on eta alone
         nn_weights = choice_weights(jnp.ones_like(dist), log_eta, _f(0.0), _f(1.0))
         nn_tour = construct_tours(k_chaos, nn_weights, jnp.zeros((1,), jnp.int32), q0=1.0)
         nn_length = tour_lengths(dist, nn_tour)[0]
-        tau_max, tau_min = self._bounds(params, nn_length, n)
-        tau0 = jnp.where(
-            params.init_at_tau_max > 0.5, tau_max, pheromone.initial_tau(n, nn_length)
-        )
+        tau_max, _ = self._bounds(params, nn_length, n)
+        tau0 = jnp.where(params.init_at_tau_max, tau_max, pheromone.initial_tau(n, nn_length))
         tau = jnp.full((n, n), tau0, jnp.float32)
         return GraphState(
             **base_fields(key, params, jnp.arange(n, dtype=jnp.int32)),
             tau=tau,
-            log_eta=log_eta,
-            dist=dist,
-            neighbors=neighbors,
             chaos=chaos.logistic_init(k_chaos, (self.num_ants, n)),
-            tau_min=tau_min,
-            tau_max=tau_max,
-            rho_t=params.rho,
-            adaptive_rho=_f(0.5),
+            iter_best_cost=jnp.asarray(jnp.inf, jnp.float32),
             pheromone_tour_length=nn_length,
-            p_crossover_t=params.p_crossover,
-            p_mutation_t=params.p_mutation,
             since_improvement=jnp.zeros((), jnp.int32),
             restart_best_solution=jnp.arange(n, dtype=jnp.int32),
             restart_best_cost=jnp.asarray(jnp.inf, jnp.float32),
-            branching_factor=pheromone.branching_factor(tau, neighbors),
             restarts=jnp.zeros((), jnp.int32),
-            nn_length=nn_length,
         )
 
     def _bounds(self, p: GraphParams, best_length: Array, n: int) -> tuple[Array, Array]:
@@ -252,25 +210,27 @@ class GraphEACO(Strategy):
         scale = p.use_global_update + p.use_elitist * p.q * (p.sigma + 1.0)
         scale = jnp.maximum(scale, 1.0)
         tau_max, tau_min = pheromone.mmas_bounds(best_length, n, p.p_best, scale, p.branching)
-        on = p.use_bounds > 0.5
+        on = p.use_bounds
         return jnp.where(on, tau_max, jnp.inf), jnp.where(on, tau_min, 1e-30)
 
     # ------------------------------------------------------------------ ask
-    def _ask(self, key: Array, state: GraphState) -> tuple[Array, GraphState]:
+    def _ask(self, key: Array, state: GraphState, problem: Any) -> tuple[Array, GraphState]:
         p = state.params
         m, n = self.num_ants, state.tau.shape[0]
+        dist = jnp.asarray(problem.dist, jnp.float32)
+        log_eta = heuristic_log_eta(dist)
         k_start, k_build, k_cx, k_mut = jax.random.split(key, 4)
 
         x = chaos.logistic_step(state.chaos)
-        factor = jnp.where(p.use_chaos > 0.5, chaos.perturbation(x, p.chaos_strength), 1.0)
+        factor = jnp.where(p.use_chaos, chaos.perturbation(x, p.chaos_strength), 1.0)
         factor = jnp.concatenate([factor, jnp.ones((1, n), jnp.float32)], axis=0)
 
-        weights = choice_weights(state.tau, state.log_eta, p.alpha, p.beta)
+        weights = choice_weights(state.tau, log_eta, p.alpha, p.beta)
         # Eq. 6's pheromone-greedy ant; its weights are only computed when Eq. 5 uses L_pn
         # (otherwise it reuses the colony's weights and its length is not used)
         greedy_tau = jax.lax.cond(
-            p.use_adaptive_weight > 0.5,
-            lambda: choice_weights(state.tau, state.log_eta, _f(1.0), _f(0.0)),
+            p.use_adaptive_weight,
+            lambda: choice_weights(state.tau, log_eta, _f(1.0), _f(0.0)),
             lambda: weights)
         stacked = jnp.concatenate([weights, greedy_tau], axis=0)  # (2n, n)
         starts = jnp.concatenate(
@@ -278,41 +238,38 @@ class GraphEACO(Strategy):
         )
         offset = jnp.concatenate([jnp.zeros((m,), jnp.int32), jnp.full((1,), n, jnp.int32)])
         q0 = jnp.concatenate([jnp.full((m,), p.q0), jnp.ones((1,))])
-        cands = state.neighbors if self.candidate_lists else None
+        cands = problem.neighbors if self.candidate_lists else None
 
         def build(chaos_factor):
             return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands)
 
         # without chaos the factor is all ones: skip its per-step gathers and products
-        built = jax.lax.cond(p.use_chaos > 0.5, lambda: build(factor), lambda: build(None))
+        built = jax.lax.cond(p.use_chaos, lambda: build(factor), lambda: build(None))
         tours, pher_tour = built[:m], built[m:]
-        l_pn = tour_lengths(state.dist, pher_tour)[0]
+        l_pn = tour_lengths(dist, pher_tour)[0]
 
-        tours, pc, pm = self._genetic(k_cx, k_mut, tours, state)
-        tours = self._local_search(tours, state)
-        return tours, state.replace(
-            chaos=x,
-            pheromone_tour_length=l_pn,
-            p_crossover_t=pc,
-            p_mutation_t=pm,
-        )
+        tours = self._genetic(k_cx, k_mut, tours, state, dist)
+        tours = self._local_search(tours, problem)
+        return tours, state.replace(chaos=x, pheromone_tour_length=l_pn)
 
-    def _genetic(self, k_cx: Array, k_mut: Array, tours: Array, state: GraphState):
+    def _genetic(
+        self, k_cx: Array, k_mut: Array, tours: Array, state: GraphState, dist: Array
+    ) -> Array:
         """Crossover with the best-so-far tour and mutation, at self-adaptive rates."""
         p = state.params
         m = tours.shape[0]
         if self.crossover == "none" and self.mutation == "none":
-            return tours, _f(0.0), _f(0.0)
+            return tours
         from eaco_jax.ops import tour_ops
 
-        lengths = tour_lengths(state.dist, tours)
+        lengths = tour_lengths(dist, tours)
         lo, mean = jnp.min(lengths), jnp.mean(lengths)
         # Srinivas & Patnaik style: better-than-average ants get rates scaled by how far they
         # are from the iteration best (the best gets 0), worse ones the full rate.
         scale = jnp.where(
             lengths <= mean, (lengths - lo) / jnp.maximum(mean - lo, 1e-9), 1.0
         )
-        scale = jnp.where(p.use_adaptive_rates > 0.5, scale, 1.0)
+        scale = jnp.where(p.use_adaptive_rates, scale, 1.0)
         rate_c, rate_m = p.p_crossover * scale, p.p_mutation * scale
 
         kc1, kc2 = jax.random.split(k_cx)
@@ -333,19 +290,20 @@ class GraphEACO(Strategy):
             mutants = jax.vmap(op)(jax.random.split(km1, m), tours)
             do = jax.random.uniform(km2, (m,)) < rate_m
             tours = jnp.where(do[:, None], mutants, tours)
-        pc = rate_c.mean() if self.crossover != "none" else _f(0.0)
-        pm = rate_m.mean() if self.mutation != "none" else _f(0.0)
-        return tours, pc, pm
+        return tours
 
-    def _local_search(self, tours: Array, state: GraphState) -> Array:
+    def _local_search(self, tours: Array, problem: Any) -> Array:
         if self.local_search == "none":
             return tours
         from eaco_jax.ops import local_search
 
-        return local_search.two_opt(tours, state.dist, state.neighbors, self.max_ls_moves)
+        dist = jnp.asarray(problem.dist, jnp.float32)
+        return local_search.two_opt(tours, dist, problem.neighbors, self.max_ls_moves)
 
     # ------------------------------------------------------------------ tell
-    def _tell(self, state: GraphState, solutions: Array, fitness: Array) -> GraphState:
+    def _tell(
+        self, state: GraphState, solutions: Array, fitness: Array, problem: Any
+    ) -> tuple[GraphState, dict[str, Array]]:
         p = state.params
         n = state.tau.shape[0]
         lengths = fitness.astype(jnp.float32)
@@ -353,53 +311,52 @@ class GraphEACO(Strategy):
         previous_best = state.best_cost
         state = record_best(state, solutions, lengths)
         i_best = jnp.argmin(lengths)
-        on = lambda s: s > 0.5  # noqa: E731
         # MMAS restart-best: the best tour since the last trail restart
         rb_improved = lengths[i_best] < state.restart_best_cost
         rb_solution = jnp.where(rb_improved, solutions[i_best], state.restart_best_solution)
         rb_cost = jnp.where(rb_improved, lengths[i_best], state.restart_best_cost)
-        improved = jnp.where(on(p.use_restart_best), rb_improved,
+        improved = jnp.where(p.use_restart_best, rb_improved,
                              state.best_cost < previous_best)
         since = jnp.where(improved, 0, state.since_improvement + 1)
 
         rho_t = jnp.where(
-            on(p.use_evaporation_schedule),
+            p.use_evaporation_schedule,
             pheromone.evaporation_schedule(
                 p.rho, since.astype(jnp.float32), p.stagnation_window, p.evaporation_slowdown
             ),
             p.rho,
         )
-        alpha_g = jnp.where(on(p.use_evaporation_schedule), p.alpha_g * rho_t / p.rho, p.alpha_g)
+        alpha_g = jnp.where(p.use_evaporation_schedule, p.alpha_g * rho_t / p.rho, p.alpha_g)
 
         tau = state.tau
         # Eq. 68-70
         # switched-off rules are skipped (lax.cond; a select under vmap over switches)
         tau = jax.lax.cond(
-            on(p.use_local_update),
+            p.use_local_update,
             lambda t: pheromone.local_update(t, solutions, lengths, rho_t, p.q),
             lambda t: t, tau,
         )
         # Eq. 71 on the best-so-far tour (every gb_every iterations) or the iteration best
         use_gb = (state.iteration % jnp.maximum(p.gb_every, 1.0).astype(jnp.int32)) == 0
-        gb_solution = jnp.where(on(p.use_restart_best), rb_solution, state.best_solution)
-        gb_cost = jnp.where(on(p.use_restart_best), rb_cost, state.best_cost)
+        gb_solution = jnp.where(p.use_restart_best, rb_solution, state.best_solution)
+        gb_cost = jnp.where(p.use_restart_best, rb_cost, state.best_cost)
         target = jnp.where(use_gb, gb_solution, solutions[i_best])
         target_len = jnp.where(use_gb, gb_cost, lengths[i_best])
         tau = jax.lax.cond(
-            on(p.use_global_update),
+            p.use_global_update,
             lambda t: pheromone.global_update(t, target, target_len, alpha_g),
             lambda t: t, tau,
         )
         # Eq. 3-5 deposit weights, Eq. 73-74 elitist reinforcement
         mask = jnp.where(
-            on(p.use_deposit_condition),
+            p.use_deposit_condition,
             pheromone.elitist_deposit_mask(lengths, previous_iter_best),
             True,
         ).astype(jnp.float32)
         weight_n = pheromone.adaptive_weight(lengths, state.pheromone_tour_length)
-        weights = mask * jnp.where(on(p.use_adaptive_weight), 2.0 * weight_n, 1.0)
+        weights = mask * jnp.where(p.use_adaptive_weight, 2.0 * weight_n, 1.0)
         tau = jax.lax.cond(
-            on(p.use_elitist),
+            p.use_elitist,
             lambda t: pheromone.elitist_update(
                 t, solutions, lengths, weights / self.num_ants, state.best_solution,
                 state.best_cost, rho_t, p.q, p.sigma,
@@ -409,37 +366,30 @@ class GraphEACO(Strategy):
         # Eq. 7 and MMAS restart
         tau_max, tau_min = self._bounds(p, state.best_cost, n)
         tau = pheromone.clamp(tau, tau_min, tau_max)
-        branching = pheromone.branching_factor(tau, state.neighbors)
+        branching = pheromone.branching_factor(tau, problem.neighbors)
         converged = (p.restart_branching <= 0) | (branching < p.restart_branching)
-        restart = on(p.use_restart) & (since >= p.restart_after) & converged
+        restart = p.use_restart & (since >= p.restart_after) & converged
         tau = pheromone.reset(tau, tau_max, restart)
         since = jnp.where(restart, 0, since)
 
         from eaco_jax.ops.diversity import edge_diversity
 
-        return state.replace(
+        state = state.replace(
             tau=tau,
-            tau_min=tau_min,
-            tau_max=tau_max,
-            rho_t=rho_t.astype(jnp.float32),
-            adaptive_rho=jnp.mean(weight_n).astype(jnp.float32),
+            iter_best_cost=jnp.min(lengths).astype(jnp.float32),
             since_improvement=since,
             restart_best_solution=rb_solution,
             restart_best_cost=jnp.where(restart, jnp.inf, rb_cost).astype(jnp.float32),
-            branching_factor=branching,
             restarts=state.restarts + restart.astype(jnp.int32),
-            diversity=jnp.clip(edge_diversity(solutions), 0.0, 1.0).astype(jnp.float32),
         )
-
-    def stats(self, state: GraphState) -> dict[str, Array]:
-        out = super().stats(state)
-        out.update(
-            rho_t=state.rho_t,
-            adaptive_rho=state.adaptive_rho,
-            pheromone_tour_length=state.pheromone_tour_length,
-            p_crossover=state.p_crossover_t,
-            p_mutation=state.p_mutation_t,
-            restarts=state.restarts,
-            branching_factor=state.branching_factor,
-        )
-        return out
+        metrics = {
+            "diversity": jnp.clip(edge_diversity(solutions), 0.0, 1.0).astype(jnp.float32),
+            "rho_t": rho_t.astype(jnp.float32),
+            "adaptive_rho": jnp.mean(weight_n).astype(jnp.float32),
+            "pheromone_tour_length": state.pheromone_tour_length,
+            "restarts": state.restarts,
+            "branching_factor": branching,
+            "tau_min": tau_min,
+            "tau_max": tau_max,
+        }
+        return state, metrics

@@ -24,35 +24,44 @@ from flax import struct
 
 from eaco_jax.ops import chaos, pheromone
 from eaco_jax.ops.construction import choice_weights
-from eaco_jax.problems.path_planning import GOAL, START
-from eaco_jax.strategies.base import State, Strategy, base_fields, record_best
+from eaco_jax.problems.path_planning import GOAL, START, PathPlanning
+from eaco_jax.strategies.base import State, Strategy, as_params, base_fields, record_best
 
 Array = jax.Array
 
 
 @struct.dataclass
 class PathParams:
-    alpha: Array  # pheromone exponent (Eq. 2)
-    beta: Array  # heuristic exponent (Eq. 2)
-    rho: Array  # evaporation rate
-    q0: Array  # probability of the greedy choice
-    q: Array  # deposit factor Q
-    sigma: Array  # elitist ants (Eq. 74)
-    p_best: Array  # MAX-MIN: probability of rebuilding the best path at the bounds
-    p_crossover: Array  # common-node crossover probability per ant
-    chaos: Array  # strength of the logistic-map perturbation, 0 = off
-    shortcut: Array  # 1 = string-pulling local search on every ant, 0 = off
-    adaptive: Array  # 1 = Eq. 5 adaptive deposit weights, 0 = equal weights
-    stagnation_window: Array  # iterations without improvement before evaporation slows
-    schedule_strength: Array  # how much it slows (0 = fixed rho)
+    """Traced hyper-parameters (names shared with :class:`GraphParams` where the idea is)."""
+
+    alpha: Array = 1.0  # pheromone exponent (Eq. 2)
+    beta: Array = 3.0  # heuristic exponent (Eq. 2)
+    rho: Array = 0.1  # evaporation rate
+    q0: Array = 0.2  # probability of the greedy choice
+    q: Array = 1.0  # deposit factor Q
+    sigma: Array = 4.0  # elitist ants (Eq. 74)
+    p_best: Array = 0.05  # MAX-MIN: probability of rebuilding the best path at the bounds
+    p_crossover: Array = 0.3  # common-node crossover probability per ant
+    chaos_strength: Array = 0.1  # logistic-map perturbation of the choice weights
+    stagnation_window: Array = 30.0  # iterations without improvement before evaporation slows
+    evaporation_slowdown: Array = 0.5  # how much it slows (0 = fixed rho)
+    use_chaos: Array = True
+    use_shortcut: Array = True  # string-pulling local search on every ant
+    use_adaptive_weight: Array = True  # Eq. 5 adaptive deposit weights (else equal weights)
 
 
 @struct.dataclass
 class PathState(State):
     tau: Array  # (n, n) pheromone
-    log_eta: Array  # (n, n) log heuristic, -inf where blocked
-    dist: Array  # (n, n) edge lengths (+inf blocked)
     chaos_x: Array  # (m,) logistic-map variables
+
+
+def path_log_eta(problem: PathPlanning) -> Array:
+    """Goal-directed heuristic log(1 / (d_ij + |x_j - goal|)), -inf where blocked."""
+    dist = problem.dist.astype(jnp.float32)
+    free = jnp.isfinite(dist)
+    log_eta = jnp.where(free, -jnp.log(dist + problem.to_goal[None, :] + 1e-6), -jnp.inf)
+    return log_eta.astype(jnp.float32)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,37 +71,28 @@ class PathEACO(Strategy):
     num_ants: int = 32
     problem_kind = "path"
 
-    def default_params(self, problem) -> PathParams:
-        f = jnp.float32
-        return PathParams(
-            alpha=f(1.0), beta=f(3.0), rho=f(0.1), q0=f(0.2), q=f(1.0), sigma=f(4.0),
-            p_best=f(0.05), p_crossover=f(0.3), chaos=f(0.1), shortcut=f(1.0),
-            adaptive=f(1.0), stagnation_window=f(30.0), schedule_strength=f(0.5),
-        )
+    def default_params(self, problem: PathPlanning | None = None) -> PathParams:
+        return as_params(PathParams())
 
-    def _init(self, key, problem, params) -> PathState:
+    def _init(self, key: Array, problem: PathPlanning, params: PathParams) -> PathState:
         n = problem.n
-        dist = problem.dist.astype(jnp.float32)
-        free = jnp.isfinite(dist)
-        log_eta = jnp.where(free, -jnp.log(dist + problem.to_goal[None, :] + 1e-6), -jnp.inf)
         tau0 = 1.0 / (n * jnp.sum(problem.to_goal[START]))  # 1/(n * straight-line length)
         key, k_chaos = jax.random.split(key)
         template = jnp.full((n,), GOAL, jnp.int32).at[0].set(START)
         return PathState(
             **base_fields(key, params, template),
             tau=jnp.full((n, n), tau0, jnp.float32),
-            log_eta=log_eta.astype(jnp.float32),
-            dist=dist,
             chaos_x=chaos.logistic_init(k_chaos, (self.num_ants,)),
         )
 
     # ------------------------------------------------------------------ construction
-    def _walk(self, key: Array, state: PathState) -> Array:
+    def _walk(self, key: Array, state: PathState, problem: PathPlanning) -> Array:
         """(m, n) node sequences from START, stopping at GOAL (stuck ants stay put)."""
         p = state.params
         m, n = self.num_ants, state.tau.shape[0]
-        w = choice_weights(state.tau, state.log_eta, p.alpha, p.beta)
-        factor = chaos.perturbation(state.chaos_x, p.chaos)[:, None]
+        w = choice_weights(state.tau, path_log_eta(problem), p.alpha, p.beta)
+        factor = jnp.where(p.use_chaos, chaos.perturbation(state.chaos_x, p.chaos_strength),
+                           1.0)[:, None]
         rows = jnp.arange(m)
 
         def step(carry, k):
@@ -113,9 +113,10 @@ class PathEACO(Strategy):
         _, seq = jax.lax.scan(step, init, jax.random.split(key, n - 1))
         return jnp.concatenate([start[:, None], seq.T], axis=1)
 
-    def _ask(self, key, state: PathState):
+    def _ask(self, key: Array, state: PathState, problem: PathPlanning) -> tuple[Array, PathState]:
         k_walk, k_pair, k_cut, k_cross = jax.random.split(key, 4)
-        paths = self._walk(k_walk, state)
+        paths = self._walk(k_walk, state, problem)
+        dist = problem.dist.astype(jnp.float32)
         p = state.params
         m = self.num_ants
         partners = paths[jax.random.randint(k_pair, (m,), 0, m)]
@@ -123,12 +124,14 @@ class PathEACO(Strategy):
         children = jax.vmap(common_node_crossover)(keys, paths, partners)
         cross = jax.random.uniform(k_cross, (m,)) < p.p_crossover
         paths = jnp.where(cross[:, None], children, paths)
-        cut = jax.vmap(shortcut, in_axes=(0, None))(paths, state.dist)
-        paths = jnp.where(p.shortcut > 0, cut, paths)
+        cut = jax.vmap(shortcut, in_axes=(0, None))(paths, dist)
+        paths = jnp.where(p.use_shortcut, cut, paths)
         return paths, state.replace(chaos_x=chaos.logistic_step(state.chaos_x))
 
     # ------------------------------------------------------------------ pheromone
-    def _tell(self, state: PathState, paths, lengths) -> PathState:
+    def _tell(
+        self, state: PathState, paths: Array, lengths: Array, problem: PathPlanning
+    ) -> tuple[PathState, dict[str, Array]]:
         p = state.params
         n = state.tau.shape[0]
         previous_best = state.best_cost
@@ -138,16 +141,16 @@ class PathEACO(Strategy):
         mask = pheromone.elitist_deposit_mask(jnp.where(ok, lengths, jnp.inf), previous_best) & ok
         adaptive = pheromone.adaptive_weight(safe, jnp.where(jnp.isfinite(state.best_cost),
                                                              state.best_cost, 1.0))
-        weights = mask * jnp.where(p.adaptive > 0, 2.0 * adaptive, 1.0)
+        weights = mask * jnp.where(p.use_adaptive_weight, 2.0 * adaptive, 1.0)
         rho = pheromone.evaporation_schedule(p.rho, state.stagnation, p.stagnation_window,
-                                             p.schedule_strength)
+                                             p.evaporation_slowdown)
         has_best = jnp.isfinite(state.best_cost)
         best_len = jnp.where(has_best, state.best_cost, 1.0)
         tau = pheromone.elitist_update(state.tau, paths, safe, weights, state.best_solution,
                                        best_len, rho, p.q, jnp.where(has_best, p.sigma, 0.0))
         tau_max, tau_min = pheromone.mmas_bounds(best_len, n, p.p_best, p.q * (1.0 + p.sigma))
         tau = jnp.where(has_best, pheromone.clamp(tau, tau_min, tau_max), tau)
-        return state.replace(tau=tau, diversity=path_diversity(paths, n))
+        return state.replace(tau=tau), {"diversity": path_diversity(paths, n)}
 
 
 def common_node_crossover(key: Array, a: Array, b: Array) -> Array:

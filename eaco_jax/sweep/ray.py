@@ -19,7 +19,10 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from eaco_jax.sweep import Cell, get_builder, run_group, write_cell
+from eaco_jax.errors import ConfigError
+from eaco_jax.sweep.cells import Cell
+from eaco_jax.sweep.local import run_group, write_cell
+from eaco_jax.sweep.spec import run_kind
 
 
 def _run_cell(spec: dict[str, Any], cell: dict[str, Any], seeds: list[int], out: str,
@@ -27,7 +30,7 @@ def _run_cell(spec: dict[str, Any], cell: dict[str, Any], seeds: list[int], out:
     """Body of one Ray task: build, run (resuming from the cell's checkpoint), return record."""
     c = Cell(**cell)
     ck = Path(out) / "checkpoints" / c.id
-    return run_group(get_builder(spec), [c], seeds, checkpoint_dir=ck,
+    return run_group(run_kind(spec), [c], seeds, checkpoint_dir=ck,
                      checkpoint_every=every)[c.id]
 
 
@@ -47,7 +50,7 @@ def run_cells_on_ray(
     try:
         import ray
     except ImportError:
-        raise RuntimeError(
+        raise ConfigError(
             "the ray backend needs Ray: pip install 'eaco-jax[ray]' (or pip install ray)"
         ) from None
     started = False

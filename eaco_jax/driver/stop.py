@@ -1,0 +1,93 @@
+"""Stop rules: predicates the driver checks on the host after every compiled chunk.
+
+A stop rule is any callable ``rule(state, progress) -> bool`` (True ends the run). ``state`` is
+the colony state (with a leading row axis when several seeds or settings run at once) and
+``progress`` a :class:`Progress` record. The iteration budget is not a rule: it fixes the
+length of the compiled run and is given to :func:`~eaco_jax.driver.minimize.minimize` as
+``iterations`` (or ``max_evaluations``). Rules stop *after* the chunk in which they fire;
+``chunk_size`` sets how often they are checked.
+
+Built in (also reachable through ``minimize``'s keywords of the same meaning)::
+
+    Target(value)            every row's best cost <= value        (target=)
+    Patience(iterations)     every row stagnated this long         (patience=)
+    WallTime(seconds)        compute seconds since the start       (max_seconds=)
+    Evaluations(n)           every row charged >= n evaluations
+    Callback(fn)             fn(state, progress) returned True     (callback=)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class Progress:
+    """Where a run stands after a chunk.
+
+    Attributes:
+      iterations: iterations completed (a resumed run counts those before the restart).
+      seconds: compute seconds of this process's run so far, compilation excluded.
+      compile_seconds: seconds spent compiling so far.
+    """
+
+    iterations: int
+    seconds: float
+    compile_seconds: float
+
+
+StopRule = Callable[[Any, Progress], bool]
+
+
+@dataclasses.dataclass(frozen=True)
+class Target:
+    """Stop once every row's best cost is at or below ``value``."""
+
+    value: float
+
+    def __call__(self, state: Any, progress: Progress) -> bool:
+        return bool(np.all(np.asarray(state.best_cost) <= self.value))
+
+
+@dataclasses.dataclass(frozen=True)
+class Patience:
+    """Stop once every row has gone ``iterations`` iterations without improving."""
+
+    iterations: int
+
+    def __call__(self, state: Any, progress: Progress) -> bool:
+        return bool(np.all(np.asarray(state.stagnation) >= self.iterations))
+
+
+@dataclasses.dataclass(frozen=True)
+class WallTime:
+    """Stop once ``seconds`` of compute (compilation excluded) have passed."""
+
+    seconds: float
+
+    def __call__(self, state: Any, progress: Progress) -> bool:
+        return progress.seconds >= self.seconds
+
+
+@dataclasses.dataclass(frozen=True)
+class Evaluations:
+    """Stop once every row has been charged at least ``n`` evaluations."""
+
+    n: int
+
+    def __call__(self, state: Any, progress: Progress) -> bool:
+        return bool(np.all(np.asarray(state.evaluations) >= self.n))
+
+
+@dataclasses.dataclass(frozen=True)
+class Callback:
+    """Call ``fn(state, progress)`` after every chunk; it ends the run by returning True."""
+
+    fn: Callable[[Any, Progress], Any]
+
+    def __call__(self, state: Any, progress: Progress) -> bool:
+        return bool(self.fn(state, progress))

@@ -1,0 +1,335 @@
+"""The ``gait`` and ``gait-eval`` runs: optimise a walking gait, or re-simulate a stored one.
+
+``gait`` lets the continuous EACO colony search the walk engine's parameters
+(:mod:`eaco_jax.gait.walk_engine`): every iteration rolls the whole colony out as one batched
+simulation (``backend="native"``: MuJoCo's C engine on all CPU threads, the CPU default;
+``"mjx"``: MJX, the GPU default) and scores each gait by the paper's fitness (distance walked in
+the desired direction within ``horizon`` seconds; falls, no progress and drift > 45 degrees
+score 0). The best gait is then re-simulated and written to ``out``:
+
+* ``best_gait.json``: parameters by name and as a vector, robot, horizon, direction, slope,
+  backend, seed, iterations and the measured metrics (speed, distance, fall, drift, fitness);
+* ``history.csv`` and ``convergence.png``: best-so-far and colony-mean fitness per iteration;
+* ``joint_angles.png``: hip, knee and ankle angles of both legs against time (paper Figs. 3, 10);
+* ``best_gait.mp4``: an offscreen video of the best gait (skipped, with a message on stderr, when
+  no OpenGL context can be made; ``video=False`` skips it on purpose).
+
+``init`` warm-starts from a stored gait (``best_gait.json``): the colony then searches a box of
++/- 15% of each parameter's range around it instead of the full range.
+
+``gait-eval`` re-simulates stored parameters (same outputs but the convergence files); robot,
+horizon, direction and slope come from the file unless given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json as jsonlib
+import sys
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from eaco_jax.errors import ProblemError
+from eaco_jax.gait.render import ensure_headless_gl
+from eaco_jax.runs.base import Built, RunKind, check_choices, check_positive, setting
+
+ensure_headless_gl()  # before anything imports mujoco: its GL backend is fixed at import
+
+BACKENDS = ("auto", "mjx", "native")
+EVAL_HORIZON = 20.0
+INIT_RADIUS = 0.15
+"""``init`` search box: +/- this fraction of each parameter's range around the stored gait."""
+
+METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_time")
+LEG_PITCH_JOINTS = ("HipPitch", "KneePitch", "AnklePitch")  # not HipYawPitch
+
+
+@dataclasses.dataclass(frozen=True)
+class GaitSettings:
+    robot: str = setting("nao", "robot: nao (humanoid) or ant (quadruped)")
+    backend: str = setting("auto", "physics: native (MuJoCo C, CPU default), mjx (GPU default) "
+                           "or auto", choices=BACKENDS)
+    ants: int = setting(16, "colony size (gaits simulated per iteration)")
+    iterations: int = setting(25, "colony iterations")
+    horizon: float = setting(4.0, "seconds simulated per gait (the paper uses 20)")
+    direction: float = setting(0.0, "desired walking direction in degrees, 0 = forward (+x)")
+    slope: float = setting(0.0, "floor slope in degrees, uphill along +x")
+    seed: int = setting(0, "random seed")
+    out: str | None = setting("out/gait", "folder for best_gait.json, history.csv, plots, video")
+    video: bool = setting(True, "render best_gait.mp4 offscreen")
+    init: str | None = setting(None, "warm start: search +/-15% of each range around this "
+                               "stored gait (JSON)")
+
+    def __post_init__(self) -> None:
+        check_choices(self)
+        check_positive(self, "ants", "iterations")
+
+
+@dataclasses.dataclass(frozen=True)
+class GaitEvalSettings:
+    params_file: str = setting("best_gait.json", "a stored gait (best_gait.json of `eaco gait`)",
+                               positional=True, metavar="PARAMS.json")
+    robot: str | None = setting(None, "robot (default: the file's)")
+    backend: str = setting("auto", "native, mjx or auto", choices=BACKENDS)
+    horizon: float | None = setting(None, "seconds to simulate (default: the file's, else 20)")
+    out: str | None = setting(None, "folder for gait_eval.json, joint_angles.png and the video")
+    video: bool = setting(True, "render best_gait.mp4 into --out")
+
+    def __post_init__(self) -> None:
+        check_choices(self)
+
+
+# --------------------------------------------------------------------------- parameter files
+def read_params_file(path: str | Path) -> dict[str, Any]:
+    """Load a stored gait (``best_gait.json`` / ``nao_best_gait.json``); one-line errors."""
+    path = Path(path)
+    if not path.is_file():
+        raise ProblemError(f"parameter file {path} does not exist")
+    try:
+        data = jsonlib.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as err:
+        raise ProblemError(f"parameter file {path} is not valid JSON ({err})") from None
+    if not isinstance(data, dict) or not ("vector" in data or "params" in data):
+        raise ProblemError(
+            f"parameter file {path} needs a 'vector' list or a 'params' {{name: value}} object "
+            "(as written by `eaco gait`)")
+    return data
+
+
+def params_vector(data: dict[str, Any], problem: Any, source: str) -> np.ndarray:
+    """The parameter vector of a stored gait for ``problem`` (by name if given, else vector)."""
+    names = problem.param_names
+    if isinstance(data.get("params"), dict):
+        missing = [n for n in names if n not in data["params"]]
+        if missing:
+            raise ProblemError(f"{source}: parameters {missing} missing for robot "
+                             f"{problem.spec.name!r} (expects {', '.join(names)})")
+        values = [data["params"][n] for n in names]
+    else:
+        values = data["vector"]
+    try:
+        vec = np.asarray(values, np.float32).reshape(-1)
+    except (TypeError, ValueError):
+        raise ProblemError(f"{source}: parameters must be numbers") from None
+    if vec.shape != (len(names),):
+        raise ProblemError(f"{source}: robot {problem.spec.name!r} needs {len(names)} parameters, "
+                         f"got {vec.size}")
+    if not np.all(np.isfinite(vec)):
+        raise ProblemError(f"{source}: parameters must be finite")
+    return vec
+
+
+def _stored(data: dict[str, Any], *keys: str) -> Any:
+    for k in keys:
+        if data.get(k) is not None:
+            return data[k]
+    return None
+
+
+# --------------------------------------------------------------------------- outputs
+def write_trajectory_outputs(folder: Path, problem: Any, sim: dict[str, Any], video: bool,
+                             title: str) -> dict[str, str | None]:
+    """``joint_angles.png`` and (if ``video``) ``best_gait.mp4`` of one simulated gait."""
+    from eaco_jax import plots
+
+    folder.mkdir(parents=True, exist_ok=True)
+    legs, groups = leg_joints(sim["joints"])
+    files: dict[str, str | None] = {"joint_angles": str(plots.joint_trajectories(
+        sim["time"], legs, folder / "joint_angles.png", title=title, groups=groups))}
+    files["video"] = write_video(folder / "best_gait.mp4", problem, sim["qpos"]) if video else None
+    return files
+
+
+def leg_joints(joints: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
+    """The joints the paper plots (sagittal hip, knee, ankle pitch of both legs) and their groups;
+    robots without such names (the ant) get every joint, grouped by name prefix (hip, ankle)."""
+    pitch = {n: a for n, a in joints.items() if n.endswith(LEG_PITCH_JOINTS)}
+    if pitch:
+        return pitch, ("Hip", "Knee", "Ankle")
+    return dict(joints), tuple(dict.fromkeys(n.split("_")[0] for n in joints))
+
+
+def write_video(path: Path, problem: Any, qpos: np.ndarray) -> str | None:
+    """Render the trajectory offscreen; on a machine without OpenGL say so and return None."""
+    from eaco_jax.gait.render import RenderUnavailable, render_video
+    from eaco_jax.gait.rollout_native import native_model
+
+    model = native_model(problem.spec, float(problem.slope_deg), problem.accuracy)
+    try:
+        with warnings.catch_warnings():  # ffmpeg runs as a subprocess (fork + exec): harmless
+            warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called")
+            return str(render_video(model, qpos, problem.spec.control_dt, path, fps=25.0,
+                                    track_body=problem.spec.torso_body))
+    except RenderUnavailable as err:
+        print(f"note: video skipped, offscreen rendering is unavailable here: {err}",
+              file=sys.stderr)
+        return None
+
+
+def fitness_history(history: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The driver's cost history turned into fitness (metres walked), plus the rest."""
+    out = {"best_fitness": -np.asarray(history["best_cost"], np.float64),
+           "iter_best_fitness": -np.asarray(history["iter_best_cost"], np.float64),
+           "iter_mean_fitness": -np.asarray(history["iter_mean_cost"], np.float64)}
+    for k in ("diversity", "evaluations"):
+        if k in history:
+            out[k] = np.asarray(history[k])
+    return out
+
+
+def _setting(problem: Any) -> dict[str, Any]:
+    """The simulated setting shared by the gait and gait-eval records."""
+    return {"robot": problem.spec.name, "backend": problem.backend, "horizon": problem.horizon,
+            "direction": problem.direction_deg, "slope": problem.slope_deg}
+
+
+def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
+    return {k: sim[k] for k in METRIC_KEYS}
+
+
+
+# --------------------------------------------------------------------------- gait
+def _problem(robot: str, backend: str, horizon: float, direction: float, slope: float) -> Any:
+    from eaco_jax.problems.gait import make_gait_problem
+
+    return make_gait_problem(robot, backend=backend, horizon=float(horizon),
+                             direction_deg=float(direction), slope_deg=float(slope))
+
+
+def build(s: GaitSettings) -> Built:
+    """The gait problem (narrowed around ``init`` if given) and a gradient-free colony."""
+    import jax.numpy as jnp
+
+    from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+
+    problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope)
+    search = problem
+    extra: dict[str, Any] = {"full_problem": problem}
+    if s.init is not None:
+        init_vec = params_vector(read_params_file(s.init), problem, str(s.init))
+        full_lo, full_hi = np.asarray(problem.lower), np.asarray(problem.upper)
+        half = INIT_RADIUS * (full_hi - full_lo)
+        lo = np.maximum(full_lo, init_vec - half).astype(np.float32)
+        hi = np.minimum(full_hi, init_vec + half).astype(np.float32)
+        search = problem.replace(lower=jnp.asarray(lo), upper=jnp.asarray(hi))
+        extra["init_vec"] = init_vec
+    # the simulation is not differentiable: no SQP refinement ants, no gradient repair
+    ants = int(s.ants)
+    strategy = ContinuousEACO(num_ants=ants, archive_size=max(2, (3 * ants) // 2),
+                              refine_ants=0, repair_steps=0)
+    return Built(search, strategy, strategy.default_params(search),
+                 {"iterations": int(s.iterations)}, extra=extra)
+
+
+def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
+    return {"fitness": -float(np.asarray(result.best_cost).reshape(-1)[row])}
+
+
+def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -> dict[str, Any]:
+    """Optimise a gait; write the outputs to ``s.out``; returns the JSON record."""
+    from eaco_jax.driver.minimize import minimize
+
+    built = build(s)
+    problem = built.extra["full_problem"]
+    t0 = time.perf_counter()
+    result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
+                      checkpointing=checkpointing, **built.budget)
+    best = np.asarray(result.best_solution, np.float32)
+    sim = problem.simulate(best, record=True)
+    seconds = time.perf_counter() - t0
+    history = fitness_history(result.history)
+    record: dict[str, Any] = {
+        **_setting(problem),
+        "ants": int(s.ants),
+        "seed": int(s.seed),
+        "iterations": int(result.iterations),
+        "evaluations": int(np.asarray(result.evaluations)),
+        **_metrics(sim),
+        "search_fitness": float(-np.asarray(result.best_cost)),
+        "params": problem.params_dict(best),
+        "vector": best.tolist(),
+        "init": s.init,
+        "seconds": seconds,
+        "compile_seconds": float(result.compile_seconds),
+        "seconds_per_iteration": float(result.seconds_per_iteration),
+        "history_best": history["best_fitness"].tolist(),
+        "out": s.out,
+    }
+    if "init_vec" in built.extra:
+        record["init_fitness"] = problem.simulate(built.extra["init_vec"], record=False)["fitness"]
+    if s.out is not None:
+        from eaco_jax import plots
+        from eaco_jax.outputs import write_history_csv, write_json
+
+        folder = Path(s.out)
+        folder.mkdir(parents=True, exist_ok=True)
+        write_history_csv(folder / "history.csv", history)
+        plots.convergence(history, folder / "convergence.png",
+                          keys=("best_fitness", "iter_mean_fitness"), ylabel="fitness [m]",
+                          title=f"{problem.name}: fitness ({problem.horizon:g} s horizon)")
+        files = write_trajectory_outputs(
+            folder, problem, sim, s.video,
+            title=f"{problem.spec.name}: best gait, {sim['speed_mps']:.2f} m/s")
+        record["files"] = {"best_gait": str(folder / "best_gait.json"),
+                           "history": str(folder / "history.csv"),
+                           "convergence": str(folder / "convergence.png"), **files}
+        write_json(folder / "best_gait.json", record)
+    return record
+
+
+# --------------------------------------------------------------------------- gait-eval
+def build_eval(s: GaitEvalSettings) -> Built:
+    data = read_params_file(s.params_file)
+    robot = s.robot or _stored(data, "robot") or "nao"
+    horizon = s.horizon
+    if horizon is None:
+        horizon = float(_stored(data, "horizon", "verify_horizon") or EVAL_HORIZON)
+    direction = float(_stored(data, "direction", "direction_deg") or 0.0)
+    slope = float(_stored(data, "slope", "slope_deg") or 0.0)
+    problem = _problem(str(robot), s.backend, float(horizon), direction, slope)
+    vec = params_vector(data, problem, str(s.params_file))
+    return Built(problem, None, None, {}, extra={"vector": vec})
+
+
+def run_eval(s: GaitEvalSettings, *, progress: bool = False,
+             checkpointing: Any = None) -> dict[str, Any]:
+    """Re-simulate a stored gait; returns the JSON record and writes ``s.out`` if set."""
+    built = build_eval(s)
+    problem, vec = built.problem, built.extra["vector"]
+    t0 = time.perf_counter()
+    sim = problem.simulate(vec, record=s.out is not None)
+    record: dict[str, Any] = {
+        **_setting(problem),
+        **_metrics(sim),
+        "params": problem.params_dict(vec),
+        "vector": vec.tolist(),
+        "source": str(s.params_file),
+        "seconds": time.perf_counter() - t0,
+        "out": s.out,
+    }
+    if s.out is not None:
+        from eaco_jax.outputs import write_json
+
+        folder = Path(s.out)
+        files = write_trajectory_outputs(
+            folder, problem, sim, s.video,
+            title=f"{problem.spec.name}: {Path(s.params_file).name}, {sim['speed_mps']:.2f} m/s")
+        record["files"] = {"eval": str(folder / "gait_eval.json"), **files}
+        write_json(folder / "gait_eval.json", record)
+    return record
+
+
+def summary(record: dict[str, Any]) -> str:
+    fell = f"fell at {record['fall_time']:.1f} s" if record["fell"] else "no fall"
+    return (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s): "
+            f"speed {record['speed_mps']:.3f} m/s, distance {record['distance_m']:.3f} m, "
+            f"{fell}, drift {record['drift_deg']:.1f} deg, fitness {record['fitness']:.3f}")
+
+
+KIND = RunKind("gait", GaitSettings, build, run, row_metrics, summary)
+EVAL_KIND = RunKind("gait-eval", GaitEvalSettings, build_eval, run_eval, None, summary,
+                   resumable=False)

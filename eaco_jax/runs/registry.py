@@ -1,0 +1,60 @@
+"""The registry of run kinds (``get("tsp")``), and ``resume`` of a checkpointed run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from eaco_jax.errors import CheckpointError, ConfigError
+from eaco_jax.runs import constrained, gait, path, tsp
+from eaco_jax.runs.base import RunKind
+
+_KINDS: dict[str, RunKind] = {
+    k.name: k for k in (tsp.KIND, constrained.KIND, path.KIND, gait.KIND, gait.EVAL_KIND)}
+
+
+def register(kind: RunKind) -> RunKind:
+    """Add a run kind of your own (its name becomes a sweep ``command``)."""
+    _KINDS[kind.name] = kind
+    return kind
+
+
+def kinds() -> dict[str, RunKind]:
+    """Every run kind by name."""
+    return dict(_KINDS)
+
+
+def get(name: str) -> RunKind:
+    """The run kind called ``name``; a ConfigError line lists the known ones."""
+    if name not in _KINDS:
+        raise ConfigError(f"unknown run kind {name!r}; known: {', '.join(sorted(_KINDS))}")
+    return _KINDS[name]
+
+
+def resume(directory: str | Path, *, progress: bool = False) -> dict[str, Any]:
+    """Continue the checkpointed run in ``directory`` to its original budget; its record."""
+    from eaco_jax.driver.checkpoint import read_meta
+    from eaco_jax.driver.minimize import Checkpointing
+
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise CheckpointError(f"checkpoint folder {directory} does not exist")
+    info = read_meta(directory).get("run_info") or {}
+    name, values = info.get("kind"), info.get("settings")
+    if not name or not isinstance(values, dict):
+        raise CheckpointError(
+            f"checkpoint in {directory} has no stored run kind (it was written by the Python "
+            "API, not an eaco command); resume it by calling minimize() again with the same "
+            "Checkpointing")
+    try:
+        kind = get(str(name))
+    except ConfigError:
+        raise CheckpointError(
+            f"checkpoint in {directory} was written by run kind {name!r}, which this "
+            f"installation does not provide (known: {', '.join(sorted(kinds()))})") from None
+    settings = kind.make_settings(values, where=f"checkpoint in {directory}: ")
+    checkpointing = Checkpointing(directory, every=info.get("checkpoint_every"),
+                                  run_info=info)
+    return kind.run(settings, progress=progress, checkpointing=checkpointing)
+
+

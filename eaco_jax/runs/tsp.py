@@ -1,0 +1,133 @@
+"""The ``tsp`` run: a TSPLIB instance (bundled name or ``.tsp`` path) with the graph colony.
+
+Outputs in ``out``: ``result.json``, ``history.csv``, ``convergence.png`` and ``tour.png``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from eaco_jax.runs.base import (
+    Built,
+    RunKind,
+    check_choices,
+    check_positive,
+    entered,
+    setting,
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class TspSettings:
+    instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
+                            positional=True, metavar="FILE_OR_NAME")
+    ants: int = setting(40, "colony size")
+    iterations: int = setting(300, "iterations")
+    seed: int = setting(0, "random seed")
+    local_search: str = setting("2opt", "local search on every tour", choices=("2opt", "none"))
+    crossover: str = setting("auto", "tour crossover ('auto': erx with local search, else none)",
+                             choices=("auto", "erx", "pmx", "none"))
+    mutation: str = setting("auto", "tour mutation ('auto': inversion with local search)",
+                            choices=("auto", "inversion", "swap", "none"))
+    out: str | None = setting(None, "folder for result.json, history.csv and plots")
+
+    def __post_init__(self) -> None:
+        check_choices(self)
+        check_positive(self, "ants", "iterations")
+
+
+def build(s: TspSettings) -> Built:
+    from eaco_jax.problems.tsp import load_tsplib
+    from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    problem = load_tsplib(s.instance)
+    strategy = GraphEACO(num_ants=int(s.ants), local_search=s.local_search,
+                         crossover=s.crossover, mutation=s.mutation)
+    return Built(problem, strategy, strategy.default_params(problem),
+                 {"iterations": int(s.iterations)})
+
+
+def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
+    optimum = built.problem.optimum
+    if optimum is None:
+        return {}
+    cost = float(np.asarray(result.best_cost).reshape(-1)[row])
+    return {"gap_percent": 100.0 * (cost / float(optimum) - 1.0),
+            "success": bool(cost <= float(optimum))}
+
+
+def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) -> dict[str, Any]:
+    """Solve the instance; returns the JSON record and writes ``s.out`` if set."""
+    from eaco_jax.driver.minimize import minimize
+    from eaco_jax.problems.tsp import tour_length
+
+    built = build(s)
+    with entered(built):
+        result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
+                          checkpointing=checkpointing, **built.budget)
+    problem = built.problem
+    tour = np.asarray(result.best_solution, dtype=np.int64)
+    length = int(tour_length(np.asarray(problem.dist), tour))
+    record: dict[str, Any] = {
+        "instance": problem.name,
+        "n": int(problem.n),
+        "ants": int(s.ants),
+        "seed": int(s.seed),
+        "local_search": s.local_search,
+        "best_length": length,
+        "optimum": problem.optimum,
+        "tour": tour.tolist(),
+        "iterations": int(result.iterations),
+        "evaluations": int(np.asarray(result.evaluations)),
+        "seconds": float(result.seconds),
+        "compile_seconds": float(result.compile_seconds),
+        "seconds_per_iteration": float(result.seconds_per_iteration),
+        "history_best": np.asarray(result.history["best_cost"]).astype(np.int64).tolist(),
+    }
+    if problem.optimum is not None:
+        record["gap_percent"] = 100.0 * (length / float(problem.optimum) - 1.0)
+    if s.out is not None:
+        write_outputs(Path(s.out), record, result.history, s.instance)
+    return record
+
+
+def instance_coords(instance: str) -> np.ndarray | None:
+    """City coordinates of a bundled name or ``.tsp`` path (None for EXPLICIT matrices)."""
+    from eaco_jax.problems.tsp import DATA_DIR
+    from eaco_jax.problems.tsplib import read_tsplib
+
+    text = str(instance)
+    bare = "/" not in text and "\\" not in text and not text.endswith(".tsp")
+    path = DATA_DIR / f"{text}.tsp" if bare else Path(text)
+    return read_tsplib(path).coords
+
+
+def write_outputs(folder: Path, record: dict[str, Any], history: dict[str, np.ndarray],
+                  instance: str) -> None:
+    """``result.json``, ``history.csv``, ``convergence.png`` and ``tour.png`` in ``folder``."""
+    from eaco_jax import plots
+    from eaco_jax.outputs import write_history_csv, write_json
+
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json(folder / "result.json", record)
+    write_history_csv(folder / "history.csv", history)
+    plots.convergence(history, folder / "convergence.png", optimum=record.get("optimum"),
+                      title=f"{record['instance']}: tour length", ylabel="tour length")
+    coords = instance_coords(instance)
+    if coords is not None:
+        plots.tour(coords, np.asarray(record["tour"]), folder / "tour.png",
+                   title=f"{record['instance']}: length {record['best_length']}")
+
+
+def summary(record: dict[str, Any]) -> str:
+    gap = record.get("gap_percent")
+    return (f"{record['instance']}: best length {record['best_length']}"
+            + (f" (optimum {record['optimum']:g}, gap {gap:.2f}%)" if gap is not None else "")
+            + f" in {record['iterations']} iterations, {record['seconds']:.1f} s")
+
+
+KIND = RunKind("tsp", TspSettings, build, run, row_metrics, summary)

@@ -1,0 +1,98 @@
+"""Cells of a sweep: one setting of the swept keys each, split into static settings (a group
+per distinct set: one compiled, vmapped call) and traced Params overrides."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from eaco_jax.errors import ConfigError
+from eaco_jax.sweep.spec import seeds_of, settings_list
+
+#: settings a sweep sets itself (seeds from the spec, outputs in the sweep folder)
+RESERVED = ("seed", "out")
+
+
+@dataclasses.dataclass
+class Cell:
+    """One setting of the swept keys: static run settings and traced params overrides."""
+
+    id: str
+    values: dict[str, Any]
+    args: dict[str, Any]
+    params: dict[str, Any]
+
+    def group_key(self) -> str:
+        return json.dumps(self.args, sort_keys=True, default=str)
+
+
+def param_fields(params: Any) -> set[str]:
+    """Names of the traced hyper-parameters (fields of the Params dataclass)."""
+    if not dataclasses.is_dataclass(params):
+        return set()
+    return {f.name for f in dataclasses.fields(params)}
+
+
+def expand(spec: dict[str, Any], kind: Any) -> list[Cell]:
+    """Every cell of the sweep, each checked (settings built, params known and finite) before
+    anything runs; swept keys that are Params fields go to ``params``, the rest to ``args``."""
+    base_args = dict(spec.get("args") or {})
+    seeds = seeds_of(spec)
+    settings_names = {f.name for f in dataclasses.fields(kind.settings)}
+    for key in base_args:
+        if key in RESERVED:
+            raise ConfigError(f"sweep args cannot set {key!r} (seeds come from 'seeds', "
+                              "outputs go to the sweep folder)")
+    base = kind.build(kind.make_settings(base_args, where="sweep args: "))
+    traced = param_fields(base.params)
+    valid = sorted((settings_names - set(RESERVED)) | traced)
+    cells = []
+    for index, values in enumerate(settings_list(spec)):
+        where = f"sweep cell {index} {json.dumps(values, default=str)}: "
+        unknown = sorted(k for k in values if k not in traced and
+                         (k not in settings_names or k in RESERVED))
+        if unknown:
+            raise ConfigError(f"{where}unknown key(s) {unknown}; valid: {', '.join(valid)}")
+        params = {k: v for k, v in values.items() if k in traced}
+        for name, value in params.items():
+            try:
+                finite = np.isfinite(np.asarray(value, dtype=np.float64)).all()
+            except (TypeError, ValueError):
+                raise ConfigError(f"{where}{name}={value!r} is not a number") from None
+            if not finite:
+                raise ConfigError(f"{where}{name}={value!r} is not finite")
+        args = {**base_args, **{k: v for k, v in values.items() if k not in traced}}
+        kind.make_settings(args, where=where)  # every cell checked before the first runs
+        ident = json.dumps([values, args, seeds, spec.get("command"), spec.get("kind")],
+                           sort_keys=True, default=str)
+        digest = hashlib.sha256(ident.encode()).hexdigest()[:8]
+        cells.append(Cell(f"c{index:03d}-{digest}", values, args, params))
+    return cells
+
+
+def groups_of(cells: list[Cell]) -> list[list[Cell]]:
+    """Cells sharing all static settings, in first-seen order (each group = one call)."""
+    groups: dict[str, list[Cell]] = {}
+    for cell in cells:
+        groups.setdefault(cell.group_key(), []).append(cell)
+    return list(groups.values())
+
+
+def with_params(base: Any, overrides: dict[str, Any]) -> Any:
+    """``base`` Params with ``overrides``; every field becomes an array of its default's dtype.
+
+    So all cells stack into one batch (booleans stay booleans: 1/0 in a file mean on/off).
+    """
+    changes = {}
+    for f in dataclasses.fields(base):
+        value = getattr(base, f.name)
+        dtype = jnp.asarray(value).dtype
+        if f.name in overrides:
+            value = overrides[f.name]
+        changes[f.name] = jnp.asarray(value, dtype=dtype)
+    return base.replace(**changes)

@@ -1,0 +1,46 @@
+"""``run_sweep``: plan the sweep, run its unfinished cells here or on Ray, write the tables."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from eaco_jax.errors import ConfigError
+from eaco_jax.sweep.local import plan, read_cell, run_local
+from eaco_jax.sweep.report import write_tables
+from eaco_jax.sweep.spec import seeds_of
+
+
+def run_sweep(
+    spec: dict[str, Any],
+    out: str | Path,
+    *,
+    backend: str = "local",
+    progress: bool = False,
+    ray_options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Run (or finish) a sweep into folder ``out``; returns the summary record."""
+    if backend not in ("local", "ray"):
+        raise ConfigError(f"unknown sweep backend {backend!r}; use 'local' or 'ray'")
+    out = Path(out)
+    kind, cells = plan(spec)
+    seeds = seeds_of(spec)
+    every = spec.get("checkpoint_every")
+    todo = [c for c in cells if read_cell(out, c) is None]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "spec.json").write_text(json.dumps(spec, indent=1, default=str) + "\n")
+    t0 = time.perf_counter()
+    if backend == "local":
+        run_local(kind, todo, seeds, out, every=every, progress=progress, total=len(cells))
+    else:
+        from eaco_jax.sweep.ray import run_cells_on_ray
+
+        run_cells_on_ray(spec, todo, seeds, out, progress=progress, **(ray_options or {}))
+    wall = time.perf_counter() - t0
+    records = [read_cell(out, c) for c in cells]
+    missing = [c.id for c, r in zip(cells, records, strict=True) if r is None]
+    if missing:
+        raise RuntimeError(f"sweep cells {missing} did not finish; run the sweep again")
+    return write_tables(out, spec, cells, records, wall, ran=len(todo))
