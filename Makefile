@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-all lint bench clean
+.PHONY: demo test test-all lint bench clean docs
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,11 +19,14 @@ demo: $(STAMP)
 	$(BIN)/eaco gait-eval experiments/results/nao_best_gait.json --horizon 20 --out out/best_gait
 
 test: $(STAMP)
-	$(BIN)/ruff check eaco_jax robots experiments tests
+	$(BIN)/ruff check eaco_jax robots experiments tests docs
 	$(BIN)/python -m pytest -m "not slow" -n 2 --durations=15 --nbmake tests notebooks
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --nbmake tests notebooks
+
+docs: $(STAMP)
+	$(BIN)/python docs/generate.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

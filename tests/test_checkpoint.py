@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from test_driver import RandomSearch, Sphere
 
-import eaco_jax
 import eaco_jax as ea
 from eaco_jax.driver.checkpoint import CheckpointError, latest_step, read_meta
 
@@ -19,10 +18,20 @@ def _problem(scale=1.0):
     return Sphere(lower=-scale * jnp.ones(3), upper=scale * jnp.ones(3))
 
 
+def mini(problem, strategy, *, checkpoint_dir=None, checkpoint_every=None,
+         checkpoint_seconds=None, keep=3, run_info=None, **kw):
+    """minimize with the checkpoint options spelled out as keywords."""
+    ck = None
+    if checkpoint_dir is not None:
+        ck = ea.Checkpointing(checkpoint_dir, every=checkpoint_every, seconds=checkpoint_seconds,
+                              keep=keep, run_info=run_info)
+    return ea.minimize(problem, strategy, checkpointing=ck, **kw)
+
+
 def _run(tmp, seed=1, iterations=30, **kw):
     kw.setdefault("chunk_size", 5)
-    return ea.minimize(_problem(), RandomSearch(), seed=seed, iterations=iterations,
-                       checkpoint_dir=tmp, **kw)
+    return mini(_problem(), RandomSearch(), seed=seed, iterations=iterations,
+                checkpoint_dir=tmp, **kw)
 
 
 def _same(a, b):
@@ -84,8 +93,8 @@ def test_keeps_last_k_and_time_trigger(tmp_path):
 
 
 def test_checkpoint_every_sets_default_chunk(tmp_path):
-    ea.minimize(_problem(), RandomSearch(), seed=0, iterations=100, checkpoint_every=3,
-                checkpoint_dir=tmp_path, keep=100)
+    mini(_problem(), RandomSearch(), seed=0, iterations=100, checkpoint_every=3,
+         checkpoint_dir=tmp_path, keep=100)
     assert _steps(tmp_path)[:3] == [3, 6, 9] and _steps(tmp_path)[-1] == 100
 
 
@@ -112,11 +121,11 @@ def test_foreign_checkpoint_refused_and_untouched(tmp_path, change, needle):
     before = _fingerprint(tmp_path)
     kw = dict(problem=_problem(), strategy=RandomSearch(), seed=1, iterations=30, chunk_size=5)
     if change.get("params") == "scaled":
-        change = dict(params=type(RandomSearch().default_params(None))(scale=jnp.float32(0.5)))
+        change = dict(params=RandomSearch().default_params(None).replace(scale=jnp.float32(0.5)))
     kw.update(change)
     problem, strategy = kw.pop("problem"), kw.pop("strategy")
     with pytest.raises(CheckpointError, match=needle) as err:
-        ea.minimize(problem, strategy, checkpoint_dir=tmp_path, checkpoint_every=10, **kw)
+        mini(problem, strategy, checkpoint_dir=tmp_path, checkpoint_every=10, **kw)
     assert "\n" not in str(err.value)
     assert _fingerprint(tmp_path) == before
 
@@ -124,10 +133,12 @@ def test_foreign_checkpoint_refused_and_untouched(tmp_path, change, needle):
 def test_incompatible_version_refused(tmp_path, monkeypatch):
     _run(tmp_path)
     before = _fingerprint(tmp_path)
-    monkeypatch.setattr(eaco_jax, "__version__", "0.2.0")
+    from eaco_jax.driver import checkpoint
+
+    monkeypatch.setattr(checkpoint, "__version__", "0.3.0")
     with pytest.raises(CheckpointError, match="incompatible"):
         _run(tmp_path)
-    monkeypatch.setattr(eaco_jax, "__version__", "0.1.7")  # patch releases are compatible
+    monkeypatch.setattr(checkpoint, "__version__", "0.2.7")  # patch releases are compatible
     _run(tmp_path)
     assert _fingerprint(tmp_path) == before
 
@@ -168,55 +179,55 @@ def test_half_written_step_is_ignored(tmp_path):
 
 
 def test_bad_arguments(tmp_path):
-    with pytest.raises(ValueError, match="need a checkpoint_dir"):
-        ea.minimize(_problem(), RandomSearch(), iterations=5, checkpoint_every=2)
     with pytest.raises(ValueError, match="checkpoint_every"):
         _run(tmp_path, checkpoint_every=0)
     with pytest.raises(CheckpointError, match="no checkpoint"):
         read_meta(tmp_path / "nothing")
 
 
-def test_eaco_resume_cli_continues_stored_command(tmp_path):
+def test_eaco_resume_cli_continues_stored_run(tmp_path):
+    """A run kind of one's own, checkpointed, killed (newest steps gone), resumed by the CLI."""
+    import dataclasses
+    import json
+
     from typer.testing import CliRunner
 
     from eaco_jax.cli import app
-    from eaco_jax.cli.common import RUNNERS, emit_json
+    from eaco_jax.outputs import to_jsonable
+    from eaco_jax.runs import Built, RunKind, registry
+    from eaco_jax.runs.base import checkpointing_for
 
-    def toy_runner(iterations, seed, checkpoint_dir, checkpoint_every, quiet=False):
-        res = ea.minimize(_problem(), RandomSearch(), seed=seed, iterations=iterations,
-                          checkpoint_dir=checkpoint_dir, checkpoint_every=checkpoint_every,
-                          chunk_size=5, progress=not quiet,
-                          run_info={"command": "toy", "args": dict(
-                              iterations=iterations, seed=seed, checkpoint_dir=checkpoint_dir,
-                              checkpoint_every=checkpoint_every, quiet=quiet)})
+    @dataclasses.dataclass(frozen=True)
+    class ToySettings:
+        iterations: int = 30
+        seed: int = 0
+
+    def build(s):
+        return Built(_problem(), RandomSearch(), None, {"iterations": s.iterations})
+
+    def run(s, *, progress=False, checkpointing=None):
+        b = build(s)
+        res = ea.minimize(b.problem, b.strategy, seed=s.seed, chunk_size=5, progress=progress,
+                          checkpointing=checkpointing, **b.budget)
         return {"best": float(res.best_cost), "iterations": res.iterations,
                 "history_best": res.history["best_cost"]}
 
-    RUNNERS["toy"] = toy_runner
+    kind = registry.register(RunKind("toy", ToySettings, build, run))
     try:
-        unbroken = toy_runner(30, 4, str(tmp_path / "a"), 10)
-        toy_runner(30, 4, str(tmp_path / "b"), 10)
+        s = ToySettings(iterations=30, seed=4)
+        unbroken = run(s, checkpointing=checkpointing_for("toy", s, tmp_path / "a", 10))
+        run(s, checkpointing=checkpointing_for("toy", s, tmp_path / "b", 10))
         shutil.rmtree(tmp_path / "b" / "30")
         shutil.rmtree(tmp_path / "b" / "20")
         out = CliRunner().invoke(app, ["resume", str(tmp_path / "b"), "--json"])
         assert out.exit_code == 0, out.output
-        import json
-
         record = json.loads(out.stdout.strip().splitlines()[-1])
-        import io
-        import sys
-
-        buf, old = io.StringIO(), sys.stdout
-        sys.stdout = buf
-        try:
-            emit_json(unbroken)
-        finally:
-            sys.stdout = old
-        assert record == json.loads(buf.getvalue())
+        assert record == json.loads(json.dumps(to_jsonable(unbroken)))
         bad = CliRunner().invoke(app, ["resume", str(tmp_path / "missing")])
         assert bad.exit_code == 2 and "does not exist" in bad.output
+        assert kind is registry.get("toy")
     finally:
-        RUNNERS.pop("toy", None)
+        registry._KINDS.pop("toy", None)
 
 
 def test_problem_hash_ignores_static_functions_but_not_leaves():
@@ -253,11 +264,24 @@ def test_real_strategies_resume_bit_identical(tmp_path, which):
     with ctx():
         problem, strategy = make()
         kw = dict(seed=[0, 1], iterations=12, chunk_size=4, checkpoint_every=4, keep=5)
-        full = ea.minimize(problem, strategy, checkpoint_dir=tmp_path / "full", **kw)
+        full = mini(problem, strategy, checkpoint_dir=tmp_path / "full", **kw)
         shutil.copytree(tmp_path / "full", tmp_path / "part")
         for step in ("12", "8"):
             shutil.rmtree(tmp_path / "part" / step)
-        resumed = ea.minimize(problem, strategy, checkpoint_dir=tmp_path / "part", **kw)
+        resumed = mini(problem, strategy, checkpoint_dir=tmp_path / "part", **kw)
     _same(full, resumed)
     for name in ("f", "violation"):
         np.testing.assert_array_equal(getattr(full, name), getattr(resumed, name))
+
+
+def test_checkpoint_of_the_old_state_layout_refused(tmp_path, monkeypatch):
+    """Checkpoints written before the state lost its problem data (format 1) get one line."""
+    from eaco_jax.driver import checkpoint
+
+    monkeypatch.setattr(checkpoint, "FORMAT", 1)
+    _run(tmp_path, iterations=10)
+    monkeypatch.setattr(checkpoint, "FORMAT", 2)
+    before = _fingerprint(tmp_path)
+    with pytest.raises(CheckpointError, match="has format 1, this eaco_jax reads format 2") as e:
+        _run(tmp_path, iterations=10)
+    assert "\n" not in str(e.value) and _fingerprint(tmp_path) == before

@@ -6,8 +6,7 @@ import pytest
 from typer.testing import CliRunner
 
 from eaco_jax.cli import app
-from eaco_jax.cli.common import RUNNERS
-from eaco_jax.cli.constrained import run_constrained
+from eaco_jax.runs import constrained, kinds
 
 
 def test_cli_errors_are_one_line():
@@ -17,7 +16,7 @@ def test_cli_errors_are_one_line():
     assert "unknown CEC2006 problem" in res.output
     res = runner.invoke(app, ["constrained", "g11", "--method", "lagrange", "--json"])
     assert res.exit_code == 2
-    assert "unknown constraint method" in res.output
+    assert "method='lagrange' is not one of epsilon, deb, penalty" in res.output
 
 
 def test_cli_json_line_and_outputs(tmp_path):
@@ -35,4 +34,4 @@ def test_cli_json_line_and_outputs(tmp_path):
     saved = json.loads((tmp_path / "result.json").read_text())
     assert saved["f"] == pytest.approx(rec["f"])
     assert (tmp_path / "convergence.png").stat().st_size > 0
-    assert RUNNERS["constrained"] is run_constrained
+    assert kinds()["constrained"].run is constrained.run

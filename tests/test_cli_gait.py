@@ -14,8 +14,8 @@ import pytest
 from typer.testing import CliRunner
 
 from eaco_jax.cli import app
-from eaco_jax.cli.common import RUNNERS
 from eaco_jax.gait.walk_engine import PARAM_NAMES
+from eaco_jax.runs import kinds
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 RECORD_KEYS = ("speed_mps", "distance_m", "fell", "drift_deg", "fitness", "params", "robot",
@@ -47,8 +47,8 @@ def test_gait_json_record(native_run):
         assert key in rec, key
     assert rec["robot"] == "nao" and rec["backend"] == "native" and rec["horizon"] == 0.5
     assert rec["iterations"] == 2 and rec["out"] == str(out)
-    # initial archive (3/2 x ants) + 2 colonies of 4
-    assert rec["evaluations"] == 6 + 2 * 4
+    # 2 colonies of 4 (the initial archive is not evaluated)
+    assert rec["evaluations"] == 2 * 4
     assert list(rec["params"]) == list(PARAM_NAMES) and len(rec["vector"]) == len(PARAM_NAMES)
     assert isinstance(rec["fell"], bool)
     assert rec["fitness"] >= 0 and np.isfinite(rec["speed_mps"])
@@ -56,7 +56,7 @@ def test_gait_json_record(native_run):
     assert rec["fitness"] == pytest.approx(rec["search_fitness"], abs=1e-5)
     assert len(rec["history_best"]) == 2 and rec["history_best"][-1] == pytest.approx(
         rec["search_fitness"], abs=1e-6)
-    assert "gait" in RUNNERS
+    assert "gait" in kinds()
 
 
 def test_gait_output_files(native_run):
@@ -119,8 +119,8 @@ def one_line_error(args: list[str]) -> str:
 
 def test_bad_input_is_a_one_line_error(tmp_path):
     assert "unknown robot 'robo'" in one_line_error(["gait", "--robot", "robo", "--json"])
-    assert "unknown backend 'gpu'" in one_line_error(["gait", "--backend", "gpu"])
-    assert "--ants" in one_line_error(["gait", "--ants", "0"])
+    assert "backend='gpu' is not one of" in one_line_error(["gait", "--backend", "gpu"])
+    assert "ants must be an integer >= 1" in one_line_error(["gait", "--ants", "0"])
     assert "does not exist" in one_line_error(["gait-eval", str(tmp_path / "none.json")])
     assert "does not exist" in one_line_error(
         ["gait", "--init", str(tmp_path / "none.json"), "--iterations", "1"])
@@ -134,7 +134,8 @@ def test_bad_input_is_a_one_line_error(tmp_path):
     bad.write_text(json.dumps({"robot": "nao", "vector": [float("nan")] * 14}))
     assert "finite" in one_line_error(["gait-eval", str(bad)])
     bad.write_text(json.dumps({"robot": "nao", "vector": [0.0] * 14}))
-    assert "unknown backend" in one_line_error(["gait-eval", str(bad), "--backend", "cuda"])
+    assert "backend='cuda' is not one of" in one_line_error(
+        ["gait-eval", str(bad), "--backend", "cuda"])
     assert "unknown robot" in one_line_error(["gait-eval", str(bad), "--robot", "robo"])
     bad.write_text(json.dumps([1, 2, 3]))
     assert "'vector'" in one_line_error(["gait-eval", str(bad)])

@@ -7,7 +7,7 @@ import json
 from typer.testing import CliRunner
 
 from eaco_jax.cli import app
-from eaco_jax.cli.common import RUNNERS
+from eaco_jax.runs import kinds
 
 
 def test_json_schema_and_out_folder(tmp_path):
@@ -29,7 +29,7 @@ def test_json_schema_and_out_folder(tmp_path):
         assert (out / name).is_file(), name
     assert json.loads((out / "result.json").read_text())["best_length"] == record["best_length"]
     assert len((out / "history.csv").read_text().strip().splitlines()) == 7
-    assert "tsp" in RUNNERS
+    assert "tsp" in kinds()
 
 
 def test_malformed_and_missing_files_are_one_line_errors(tmp_path):
@@ -43,3 +43,19 @@ def test_malformed_and_missing_files_are_one_line_errors(tmp_path):
         err = res.stderr.strip()
         assert err.startswith("error:") and len(err.splitlines()) == 1, err
         assert "Traceback" not in res.output
+
+
+def test_library_bugs_keep_their_traceback(monkeypatch):
+    """Only user errors become one line; anything else is a bug and is not hidden."""
+    import pytest
+
+    from eaco_jax.runs import tsp
+
+    def broken(settings):
+        raise TypeError("a bug deep in the library")
+
+    monkeypatch.setattr(tsp, "build", broken)
+    res = CliRunner().invoke(app, ["tsp", "burma14", "--iterations", "1", "--json"])
+    assert res.exit_code != 2 and isinstance(res.exception, TypeError)
+    with pytest.raises(TypeError, match="a bug deep"):
+        tsp.run(tsp.TspSettings(instance="burma14", iterations=1))

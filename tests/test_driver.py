@@ -9,7 +9,7 @@ from flax import struct
 
 import eaco_jax as ea
 from eaco_jax.problems.base import Evaluation
-from eaco_jax.strategies.base import State, Strategy, base_fields, record_best
+from eaco_jax.strategies.base import State, Strategy, as_params, base_fields, record_best
 
 
 @struct.dataclass
@@ -25,36 +25,29 @@ class Sphere:
 
 @struct.dataclass
 class RSParams:
-    scale: jax.Array
-
-
-@struct.dataclass
-class RSState(State):
-    lower: jax.Array
-    upper: jax.Array
+    scale: jax.Array = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
 class RandomSearch(Strategy):
     num_ants: int = 8
 
-    def default_params(self, problem):
-        return RSParams(scale=jnp.float32(1.0))
+    def default_params(self, problem=None):
+        return as_params(RSParams())
 
     def _init(self, key, problem, params):
-        return RSState(**base_fields(key, params, jnp.zeros_like(problem.lower)),
-                       lower=problem.lower, upper=problem.upper)
+        return State(**base_fields(key, params, jnp.zeros_like(problem.lower)))
 
-    def _ask(self, key, state):
-        x = jax.random.uniform(key, (self.num_ants, state.lower.shape[0]),
-                               minval=state.lower, maxval=state.upper)
+    def _ask(self, key, state, problem):
+        x = jax.random.uniform(key, (self.num_ants, problem.lower.shape[0]),
+                               minval=problem.lower, maxval=problem.upper)
         return x * state.params.scale, state
 
     def scalar_cost(self, fitness):
         return fitness.f
 
-    def _tell(self, state, solutions, fitness):
-        return record_best(state, solutions, fitness.f)
+    def _tell(self, state, solutions, fitness, problem):
+        return record_best(state, solutions, fitness.f), {}
 
 
 def _problem():
@@ -85,3 +78,39 @@ def test_vmapped_seeds_equal_looped_seeds():
         one = ea.minimize(_problem(), RandomSearch(), seed=s, iterations=12)
         np.testing.assert_allclose(batch.history["best_cost"][i], one.history["best_cost"],
                                    rtol=1e-6)
+
+
+def test_ask_tell_by_hand_equals_minimize():
+    """The documented loop (ask -> evaluate -> tell) is what minimize runs."""
+    problem, s = _problem(), RandomSearch()
+    state = s.init(jax.random.key(2), problem)
+    for _ in range(6):
+        key, k = jax.random.split(state.key)
+        x, state = s.ask(k, state.replace(key=key), problem)
+        state, metrics = s.tell(state, x, problem.evaluate(x), problem)
+    res = ea.minimize(problem, s, seed=2, iterations=6)
+    assert float(state.best_cost) == float(res.best_cost)
+    assert set(metrics) >= {"best_cost", "iter_best_cost", "iter_mean_cost"}
+
+
+def test_stop_rules_end_the_run_and_say_why():
+    res = ea.minimize(_problem(), RandomSearch(), seed=1, iterations=200, chunk_size=10,
+                      target=0.5)
+    assert res.stop_reason == "target" and res.iterations < 200
+    assert float(res.best_cost) <= 0.5
+    seen = []
+    res = ea.minimize(_problem(), RandomSearch(), seed=1, iterations=100, chunk_size=10,
+                      callback=lambda state, progress: seen.append(progress.iterations)
+                      or progress.iterations >= 30)
+    assert seen == [10, 20, 30] and res.iterations == 30 and res.stop_reason == "callback"
+    res = ea.minimize(_problem(), RandomSearch(), seed=1, iterations=50, chunk_size=10)
+    assert res.stop_reason == "iterations" and res.iterations == 50
+
+
+def test_second_call_compiles_nothing():
+    ea.minimize(_problem(), RandomSearch(num_ants=5), seed=0, iterations=8, chunk_size=4)
+    again = ea.minimize(_problem(), RandomSearch(num_ants=5), seed=9, iterations=12,
+                        chunk_size=4)
+    assert again.compile_seconds == 0.0 and again.iterations == 12
+    other = ea.minimize(_problem(), RandomSearch(num_ants=6), seed=0, iterations=8, chunk_size=4)
+    assert other.compile_seconds > 0.0  # another static configuration compiles

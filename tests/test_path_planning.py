@@ -51,7 +51,7 @@ def test_shortcut_never_lengthens_and_crossover_keeps_endpoints():
     p = random_environment(15, seed=2, radius=(0.03, 0.06))
     strat = PathEACO(num_ants=16)
     state = strat.init(jax.random.key(0), p)
-    paths = strat._walk(jax.random.key(1), state)
+    paths = strat._walk(jax.random.key(1), state, p)
     cut = jax.vmap(shortcut, in_axes=(0, None))(paths, p.dist)
     before, after = np.asarray(p.evaluate(paths)), np.asarray(p.evaluate(cut))
     ok = np.isfinite(before)

@@ -19,32 +19,35 @@ from eaco_jax import sweep as sw  # noqa: E402
 TESTS = Path(__file__).parent
 
 
-def dying_builder(args):
-    """test_sweep's toy builder whose first finished cell kills its own worker process once."""
-    from test_sweep import toy_builder
+def _dying_metrics(built, result, row):
+    """test_sweep's toy metrics; the first finished cell kills its own worker process once."""
+    from test_sweep import _metrics
 
-    setup = toy_builder(args)
     marker = os.environ.get("EACO_TEST_DIE_ONCE")
-    inner = setup.metrics
+    if marker and row == 0:
+        try:
+            fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            pass
+        else:
+            os.close(fd)
+            os.kill(os.getpid(), signal.SIGKILL)
+    return _metrics(built, result, row)
 
-    def metrics(result, row):
-        if marker and row == 0:
-            try:
-                fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-            except FileExistsError:
-                pass
-            else:
-                os.close(fd)
-                os.kill(os.getpid(), signal.SIGKILL)
-        return inner(result, row)
 
-    setup.metrics = metrics
-    return setup
+def _dying_kind():
+    import dataclasses
 
+    from test_sweep import TOY
+
+    return dataclasses.replace(TOY, row_metrics=_dying_metrics)
+
+
+DYING = _dying_kind()
 
 SPEC = {
     "name": "toy-ray",
-    "builder": "test_ray_sweep:dying_builder",
+    "kind": "test_ray_sweep:DYING",
     "args": {"iterations": 10},
     "seeds": 2,
     "grid": {"scale": [0.25, 1.0]},

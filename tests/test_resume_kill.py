@@ -8,6 +8,7 @@ cost, best solution, final PRNG key and the full history) must equal an unbroken
 
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -27,8 +28,8 @@ import eaco_jax as ea
 
 out, ck = sys.argv[1], sys.argv[2]
 res = ea.minimize(Sphere(lower=-jnp.ones(4), upper=jnp.ones(4)), RandomSearch(num_ants=16),
-                  seed=[3, 4], iterations=60, chunk_size=3, checkpoint_dir=ck,
-                  checkpoint_every=3, keep=2)
+                  seed=[3, 4], iterations=60, chunk_size=3,
+                  checkpointing=ea.Checkpointing(ck, every=3, keep=2))
 np.savez(out, best_cost=res.best_cost, best_solution=res.best_solution,
          key=jax.random.key_data(res.state.key), iterations=res.iterations,
          **{"h_" + k: v for k, v in res.history.items()})
@@ -65,25 +66,31 @@ def _kill_and_resume(
     tmp: Path, trial: int, mid_write: bool, window: float, rng: random.Random
 ) -> tuple[dict, str]:
     ck, out = tmp / f"ck{trial}", tmp / f"out{trial}.npz"
-    proc = _start(out, ck)
-    while not ck.exists() and proc.poll() is None:  # interpreter + JAX start-up
-        time.sleep(0.005)
-    if mid_write:  # wait for the n-th checkpoint write to begin, kill inside it
-        n, seen = rng.randint(1, 6), 0
-        while proc.poll() is None and seen < n:
-            while proc.poll() is None and not _writing(ck):
-                time.sleep(0.001)
-            seen += 1
-            if seen < n:
-                while proc.poll() is None and _writing(ck):
+    for _attempt in range(6):  # a loaded machine may finish a run before the kill: retry
+        shutil.rmtree(ck, ignore_errors=True)
+        out.unlink(missing_ok=True)
+        proc = _start(out, ck)
+        while not ck.exists() and proc.poll() is None:  # interpreter + JAX start-up
+            time.sleep(0.005)
+        if mid_write:  # wait for the n-th checkpoint write to begin, kill inside it
+            n, seen = rng.randint(1, 6), 0
+            while proc.poll() is None and seen < n:
+                while proc.poll() is None and not _writing(ck):
                     time.sleep(0.001)
-    else:  # a random moment outside a write: while computing a chunk or between chunks
-        time.sleep(rng.uniform(0.0, window))
-        while proc.poll() is None and _writing(ck):
-            time.sleep(0.001)
-    during_write = _writing(ck)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
+                seen += 1
+                if seen < n:
+                    while proc.poll() is None and _writing(ck):
+                        time.sleep(0.001)
+        else:  # a random moment outside a write: while computing a chunk or between chunks
+            time.sleep(rng.uniform(0.0, window))
+            while proc.poll() is None and _writing(ck):
+                time.sleep(0.001)
+        during_write = _writing(ck)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        if proc.returncode == -signal.SIGKILL:
+            break
+        window *= 0.5
     assert proc.returncode == -signal.SIGKILL, "the run ended before it could be killed"
     assert not out.exists()
     steps = sorted(int(p) for p in os.listdir(ck) if p.isdigit()) if ck.exists() else []

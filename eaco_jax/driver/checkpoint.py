@@ -35,7 +35,7 @@ import numpy as np
 
 from eaco_jax._version import __version__
 from eaco_jax.driver.history import merge_history
-from eaco_jax.errors import CheckpointError
+from eaco_jax.errors import CheckpointError, ConfigError
 
 #: bumped whenever the on-disk layout changes; other formats are refused on restore.
 #: 2: problem data and telemetry left the colony state (eaco_jax 0.2).
@@ -254,11 +254,11 @@ class RunCheckpointer:
         batched: bool = False,
     ) -> None:
         if every is not None and every < 1:
-            raise ValueError(f"checkpoint_every must be >= 1, got {every}")
+            raise ConfigError(f"checkpoint_every must be >= 1, got {every}")
         if seconds is not None and seconds <= 0:
-            raise ValueError(f"checkpoint_seconds must be > 0, got {seconds}")
+            raise ConfigError(f"checkpoint_seconds must be > 0, got {seconds}")
         if keep < 1:
-            raise ValueError(f"keep must be >= 1, got {keep}")
+            raise ConfigError(f"keep must be >= 1, got {keep}")
         self.directory = Path(directory).absolute()
         self.identity = identity
         self.every = every

@@ -19,6 +19,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from eaco_jax.errors import ConfigError
+
 Array = jax.Array
 
 METHODS = ("epsilon", "deb", "penalty")
@@ -27,7 +29,7 @@ METHODS = ("epsilon", "deb", "penalty")
 def check_method(method: str) -> str:
     """``method`` if known, else a ValueError naming the choices."""
     if method not in METHODS:
-        raise ValueError(f"unknown constraint method {method!r}; choose one of {METHODS}")
+        raise ConfigError(f"unknown constraint method {method!r}; choose one of {METHODS}")
     return method
 
 

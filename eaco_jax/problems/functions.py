@@ -9,6 +9,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from eaco_jax.errors import ProblemError
 from eaco_jax.problems.constrained import ConstrainedProblem
 
 Array = jax.Array
@@ -42,7 +43,7 @@ def sphere(dim: int = 10, bound: float = 5.12) -> ConstrainedProblem:
 def rosenbrock(dim: int = 10, bound: float = 5.0) -> ConstrainedProblem:
     """sum 100 (x_{i+1} - x_i^2)^2 + (1 - x_i)^2, minimum at (1, ..., 1)."""
     if dim < 2:
-        raise ValueError("rosenbrock needs dim >= 2")
+        raise ProblemError("rosenbrock needs dim >= 2")
     return ConstrainedProblem(_rosenbrock, lower=[-bound] * dim, upper=[bound] * dim,
                               name=f"rosenbrock{dim}", f_star=0.0)
 

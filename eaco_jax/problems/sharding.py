@@ -22,6 +22,8 @@ from flax import struct
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
+from eaco_jax.errors import ConfigError
+
 AXIS = "ants"
 
 
@@ -29,7 +31,7 @@ def ant_mesh(devices: Sequence[jax.Device] | None = None) -> Mesh:
     """A 1-D mesh over ``devices`` (default: every local device) named ``"ants"``."""
     devices = list(jax.local_devices() if devices is None else devices)
     if not devices:
-        raise ValueError("ant_mesh needs at least one device")
+        raise ConfigError("ant_mesh needs at least one device")
     return Mesh(np.array(devices), (AXIS,))
 
 

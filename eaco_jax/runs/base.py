@@ -85,7 +85,12 @@ class RunKind:
         if unknown:
             raise ConfigError(
                 f"{where}unknown {self.name} setting(s) {unknown}; valid: {', '.join(valid)}")
-        return self.settings(**values)
+        try:
+            return self.settings(**values)
+        except ConfigError as err:
+            if not where:
+                raise
+            raise ConfigError(f"{where}{err}") from None
 
 
 def settings_dict(settings: Any) -> dict[str, Any]:
@@ -116,3 +121,21 @@ def checkpointing_for(kind: str, settings: Any, directory: str | Path | None,
         raise ConfigError(f"--checkpoint-every must be >= 1, got {every}")
     info = {"kind": kind, "settings": settings_dict(settings), "checkpoint_every": every}
     return Checkpointing(directory, every=every, run_info=info)
+
+
+def settings_table(kind: RunKind) -> str:
+    """The kind's settings as a Markdown table (docs/sweeps.md is checked against it)."""
+    import typing
+
+    hints = typing.get_type_hints(kind.settings)
+    rows = [f"| `{kind.name}` setting | type | default | meaning |", "|---|---|---|---|"]
+    for f in dataclasses.fields(kind.settings):
+        hint = getattr(hints[f.name], "__name__", None) or str(hints[f.name])
+        hint = hint.replace(" | ", " or ")
+        text = f.metadata.get("help", "")
+        if f.metadata.get("choices"):
+            text += f" ({' / '.join(f.metadata['choices'])})"
+        if f.metadata.get("positional"):
+            text += "; the command's argument"
+        rows.append(f"| `{f.name}` | {hint} | `{f.default!r}` | {text} |")
+    return "\n".join(rows)

@@ -114,11 +114,11 @@ class ContinuousEACO(Strategy):
     def __post_init__(self) -> None:
         ch.check_method(self.constraint_method)
         if self.num_ants < 1 or self.archive_size < 2:
-            raise ValueError("ContinuousEACO needs num_ants >= 1 and archive_size >= 2")
+            raise ConfigError("ContinuousEACO needs num_ants >= 1 and archive_size >= 2")
         if not 0 <= self.refine_ants <= self.num_ants:
-            raise ValueError(f"refine_ants must be in [0, num_ants={self.num_ants}]")
+            raise ConfigError(f"refine_ants must be in [0, num_ants={self.num_ants}]")
         if self.repair_steps < 0:
-            raise ValueError("repair_steps must be >= 0")
+            raise ConfigError("repair_steps must be >= 0")
 
     def default_params(self, problem: Any = None) -> ContinuousParams:
         return ContinuousParams()

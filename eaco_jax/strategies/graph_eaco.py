@@ -56,6 +56,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.ops import chaos, pheromone
 from eaco_jax.ops.construction import (
     choice_weights,
@@ -63,7 +64,6 @@ from eaco_jax.ops.construction import (
     heuristic_log_eta,
     tour_lengths,
 )
-from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
 from eaco_jax.strategies.base import State, Strategy, as_params, base_fields, record_best
 
@@ -151,14 +151,14 @@ class GraphEACO(Strategy):
             if getattr(self, name) == "auto":
                 object.__setattr__(self, name, on if with_ls else "none")
         if self.num_ants < 1:
-            raise ValueError(f"num_ants must be >= 1, got {self.num_ants}")
+            raise ConfigError(f"num_ants must be >= 1, got {self.num_ants}")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
             ("mutation", self.mutation, MUTATIONS),
         ):
             if value not in allowed:
-                raise ValueError(f"{name}={value!r} is not one of {allowed}")
+                raise ConfigError(f"{name}={value!r} is not one of {allowed}")
 
     # ------------------------------------------------------------------ params
     def default_params(self, problem: Any = None) -> GraphParams:
