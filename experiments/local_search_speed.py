@@ -1,4 +1,4 @@
-"""How fast is the colony 2-opt pass? (eaco_jax.local_search.two_opt)
+"""How fast is the colony 2-opt pass? (eaco_jax.ops.local_search.two_opt)
 
 For each instance: a colony of ``--ants`` tours, either "rnn" (randomised nearest neighbour:
 from a random start, the nearest unvisited city, the second nearest with probability 0.1 -

@@ -1,4 +1,6 @@
-"""Gait colony evaluation on one device vs split over all local devices (eaco_jax.problems.sharding).
+"""Gait colony evaluation on one device vs split over all local devices.
+
+The split is :func:`eaco_jax.problems.sharding.shard`.
 
 Evaluates the same colony of NAO gaits (MJX backend) once on the first device and once sharded
 over every local device, checks the fitness values agree, and prints physics steps/s of each.

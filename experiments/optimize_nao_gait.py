@@ -70,13 +70,14 @@ def main() -> None:
                               repair_steps=0)
     t0 = time.time()
 
-    def report(state, done):
-        print(f"iter {done:4d}  best fitness {-float(state.best_cost):.3f} m"
+    def report(state, progress) -> bool:
+        print(f"iter {progress.iterations:4d}  best fitness {-float(state.best_cost):.3f} m"
               f"  ({time.time() - t0:.0f} s)", flush=True)
+        return False  # a progress report, never a stop
 
-    result = ea.minimize(problem.as_constrained(), strategy, seed=args.seed,
+    result = ea.minimize(problem, strategy, seed=args.seed,
                          iterations=args.iterations, chunk_size=max(1, args.iterations // 10),
-                         on_chunk=report)
+                         callback=report)
     best = np.asarray(result.best_solution, np.float32)
     seconds = time.time() - t0
     evaluations = int(np.asarray(result.evaluations))

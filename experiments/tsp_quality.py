@@ -18,7 +18,6 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,42 +27,39 @@ SMALL = ["eil51", "berlin52", "st70", "eil76", "kroA100"]
 LARGE = ["a280", "pcb442"]
 
 
+class NextChunkOverLimit:
+    """Stop rule: the next chunk, if as long as the last one, would take the run past
+    ``limit`` seconds of compute (compilation excluded)."""
+
+    def __init__(self, limit: float) -> None:
+        self.limit, self.seconds = limit, 0.0
+
+    def __call__(self, state, progress) -> bool:
+        last, self.seconds = progress.seconds - self.seconds, progress.seconds
+        return progress.seconds + last > self.limit
+
+
 def run_group(problem, strategy, seeds, *, iterations=None, time_limit=None, chunk=10):
     """Run vmapped seeds for ``iterations`` or until ``time_limit`` seconds of wall time (after
     compilation) would be exceeded by the next chunk. Returns lengths, iterations, timings."""
-    import jax
-
-    from eaco_jax.driver.minimize import init_states, make_chunk_fn
+    import eaco_jax as ea
     from eaco_jax.problems.tsp import tour_length
 
-    batched = len(seeds) > 1
-    state = init_states(strategy, problem, seeds, None)
-    t0 = time.perf_counter()
-    fn = make_chunk_fn(strategy, chunk, batched).lower(problem, state).compile()
-    compile_s = time.perf_counter() - t0
-    done, run_s, per_chunk = 0, 0.0, 0.0
-    best_hist = []
-    while True:
-        if iterations is not None and done >= iterations:
-            break
-        if time_limit is not None and run_s + per_chunk > time_limit:
-            break
-        t0 = time.perf_counter()
-        state, hist = fn(problem, state)
-        jax.block_until_ready(state)
-        per_chunk = time.perf_counter() - t0
-        run_s += per_chunk
-        done += chunk
-        best_hist.append(np.asarray(hist["best_cost"]))
-    tours = np.asarray(state.best_solution).reshape(len(seeds), -1)
+    if time_limit is not None:  # the time rule ends the run; the budget is only a bound
+        res = ea.minimize(problem, strategy, seed=seeds, iterations=10**9, chunk_size=chunk,
+                          stop=NextChunkOverLimit(time_limit))
+    else:
+        res = ea.minimize(problem, strategy, seed=seeds, iterations=iterations,
+                          chunk_size=chunk)
+    tours = np.asarray(res.best_solution).reshape(len(seeds), -1)
     dist = np.asarray(problem.dist)
     lengths = [int(tour_length(dist, t)) for t in tours]
     return {
         "lengths": lengths,
-        "iterations": done,
-        "run_seconds": run_s,
-        "compile_seconds": compile_s,
-        "restarts": np.asarray(state.restarts).reshape(-1).tolist(),
+        "iterations": int(res.iterations),
+        "run_seconds": res.seconds - res.compile_seconds,
+        "compile_seconds": res.compile_seconds,
+        "restarts": np.asarray(res.state.restarts).reshape(-1).tolist(),
     }
 
 

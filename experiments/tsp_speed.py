@@ -26,39 +26,28 @@ import argparse
 import json
 import os
 import statistics
-import time
 from pathlib import Path
 
 ACOTSP_MS = {"eil51": 0.28, "kroA100": 0.69, "a280": 3.8}
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_speed.json"
 
 
-def compile_colony(problem, strategy, chunk: int):
-    """(compiled chunk function, warmed-up state, compile seconds)."""
-    import jax
+class ChunkTimer:
+    """``minimize`` callback: seconds per iteration of every chunk after the first (warm-up),
+    from the driver's compute seconds (compilation excluded); after every ``chunks`` timed
+    chunks it calls ``between()`` (untimed: the driver counts only its compiled calls)."""
 
-    from eaco_jax.driver.minimize import init_states, make_chunk_fn
+    def __init__(self, chunk: int, chunks: int, between=None) -> None:
+        self.chunk, self.chunks, self.between = chunk, chunks, between
+        self.seconds, self.per_iter = 0.0, []
 
-    state = init_states(strategy, problem, [0], None)
-    t0 = time.perf_counter()
-    fn = make_chunk_fn(strategy, chunk, batched=False).lower(problem, state).compile()
-    compile_s = time.perf_counter() - t0
-    state, _ = fn(problem, state)  # warm-up
-    jax.block_until_ready(state)
-    return fn, state, compile_s
-
-
-def time_chunks(problem, fn, state, chunk: int, chunks: int):
-    """Seconds per iteration of ``chunks`` calls; the state after them."""
-    import jax
-
-    per_iter = []
-    for _ in range(chunks):
-        t0 = time.perf_counter()
-        state, _ = fn(problem, state)
-        jax.block_until_ready(state)
-        per_iter.append((time.perf_counter() - t0) / chunk)
-    return per_iter, state
+    def __call__(self, state, progress) -> bool:
+        elapsed, self.seconds = progress.seconds - self.seconds, progress.seconds
+        if progress.iterations > self.chunk:  # the first chunk is the warm-up
+            self.per_iter.append(elapsed / self.chunk)
+            if self.between is not None and len(self.per_iter) % self.chunks == 0:
+                self.between()
+        return False
 
 
 def acotsp_ms(binary: Path, name: str, seconds: float) -> float:
@@ -74,21 +63,27 @@ def acotsp_ms(binary: Path, name: str, seconds: float) -> float:
 def time_colony(problem, strategy, chunk: int, chunks: int, rounds: int = 1,
                 acotsp: Path | None = None, acotsp_seconds: float = 3.0) -> dict:
     """Median ms/iteration over ``rounds`` x ``chunks`` compiled chunks of ``chunk``
-    iterations; with ``acotsp``, an ACOTSP run after each round."""
-    fn, state, compile_s = compile_colony(problem, strategy, chunk)
-    per_iter, aco = [], []
-    for _ in range(rounds):
-        times, state = time_chunks(problem, fn, state, chunk, chunks)
-        per_iter += times
-        if acotsp is not None:
+    iterations (one run, after a warm-up chunk); with ``acotsp``, an ACOTSP run after each
+    round."""
+    import eaco_jax as ea
+
+    aco: list[float] = []
+    between = None
+    if acotsp is not None:
+        def between() -> None:
             aco.append(acotsp_ms(acotsp, problem.name, acotsp_seconds))
+
+    timer = ChunkTimer(chunk, chunks, between)
+    res = ea.minimize(problem, strategy, seed=0, iterations=(1 + rounds * chunks) * chunk,
+                      chunk_size=chunk, callback=timer)
+    per_iter = timer.per_iter
     ms = 1e3 * statistics.median(per_iter)
     return {
         "ms_per_iteration": ms,
         "ms_per_iteration_min": 1e3 * min(per_iter),
         "tours_per_second": strategy.num_ants / (ms / 1e3),
-        "compile_seconds": compile_s,
-        "best_length": float(state.best_cost),
+        "compile_seconds": res.compile_seconds,
+        "best_length": float(res.best_cost),
         **({"acotsp_measured_ms": statistics.median(aco), "acotsp_measured_ms_min": min(aco),
             "acotsp_runs_ms": aco} if aco else {}),
     }
