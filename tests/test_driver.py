@@ -114,3 +114,20 @@ def test_second_call_compiles_nothing():
     assert again.compile_seconds == 0.0 and again.iterations == 12
     other = ea.minimize(_problem(), RandomSearch(num_ants=6), seed=0, iterations=8, chunk_size=4)
     assert other.compile_seconds > 0.0  # another static configuration compiles
+
+
+def test_target_uses_full_precision_feasible_objective():
+    """At g10's size float32 steps are 5e-4: the target compares float64 best_f."""
+    from eaco_jax.driver.stop import Progress, Target
+
+    class S:  # a constrained state: best_cost is float32, best_f float64
+        best_cost = np.float32(7049.2481)
+        best_f = np.float64(7049.2482)  # 1e-4 above the target; float32 rounds it below
+        best_violation = np.float64(0.0)
+
+    p = Progress(1, 0.0, 0.0)
+    assert not Target(7049.24802052867 + 1e-4)(S, p)  # float32 would say "reached"
+    S.best_f = np.float64(7049.24805)
+    assert Target(7049.24802052867 + 1e-4)(S, p)
+    S.best_violation = np.float64(1e-3)
+    assert not Target(7049.24802052867 + 1e-4)(S, p)  # infeasible never reaches a target

@@ -154,3 +154,14 @@ def test_sweep_cli_json(tmp_path):
     assert rec["runs"] == 6 and len(rec["summary"]) == 2
     bad = CliRunner().invoke(app, ["sweep", str(tmp_path / "missing.yaml")])
     assert bad.exit_code == 2 and "error:" in bad.output
+
+
+def test_infeasible_rows_do_not_break_the_tables(tmp_path):
+    """A row without a feasible point is written as null (inf) and the plot still draws."""
+    from eaco_jax.sweep.report import plot_summary, summarise
+
+    rec = {"cell": "c0", "values": {"q0": 0.5},
+           "rows": [{"best_cost": None}, {"best_cost": 2.0}]}
+    assert summarise(rec)["best"] == 2.0 and summarise(rec)["runs"] == 2
+    plot_summary(tmp_path / "s.png", [rec, {**rec, "rows": [{"best_cost": None}]}], "t")
+    assert (tmp_path / "s.png").stat().st_size > 1000

@@ -45,12 +45,21 @@ StopRule = Callable[[Any, Progress], bool]
 
 @dataclasses.dataclass(frozen=True)
 class Target:
-    """Stop once every row's best cost is at or below ``value``."""
+    """Stop once every row's best cost is at or below ``value``.
+
+    For constrained problems the full-precision feasible objective (``best_f`` where
+    ``best_violation <= 0``) is compared, not the float32 ``best_cost``: at |f| ~ 7000 float32
+    cannot resolve a 1e-4 target.
+    """
 
     value: float
 
     def __call__(self, state: Any, progress: Progress) -> bool:
-        return bool(np.all(np.asarray(state.best_cost) <= self.value))
+        f = getattr(state, "best_f", None)
+        if f is None:
+            return bool(np.all(np.asarray(state.best_cost) <= self.value))
+        feasible = np.asarray(state.best_violation) <= 0
+        return bool(np.all(feasible & (np.asarray(f, np.float64) <= self.value)))
 
 
 @dataclasses.dataclass(frozen=True)

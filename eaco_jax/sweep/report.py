@@ -17,7 +17,8 @@ from eaco_jax.sweep.spec import seeds_of
 
 def summarise(record: dict[str, Any]) -> dict[str, Any]:
     """One cell's statistics over its seeds."""
-    costs = np.array([r["best_cost"] for r in record["rows"]], dtype=np.float64)
+    costs = np.array([np.inf if r["best_cost"] is None else r["best_cost"]
+                      for r in record["rows"]], dtype=np.float64)
     finite = costs[np.isfinite(costs)]
     out = {
         "cell": record["cell"], **record["values"], "runs": len(costs),
@@ -67,7 +68,8 @@ def plot_summary(path: Path, records: list[dict[str, Any]], title: Any) -> None:
     """Box plot of every cell's best cost over seeds."""
     from eaco_jax.plots import save_figure, subplots
 
-    data = [[r["best_cost"] for r in rec["rows"] if math.isfinite(r["best_cost"])] or [np.nan]
+    data = [[r["best_cost"] for r in rec["rows"]
+             if r["best_cost"] is not None and math.isfinite(r["best_cost"])] or [np.nan]
             for rec in records]
     labels = [", ".join(f"{k}={_fmt(v)}" for k, v in rec["values"].items()) or rec["cell"]
               for rec in records]
