@@ -5,9 +5,9 @@ control order, the standing keyframe, control rate, solver settings for fast and
 simulation, the torso, the feet and the fall thresholds, and (NAO) the motor datasheet with its
 sources, from which :func:`motor_constants` derives every actuator constant of the MJCF. Robot
 constants live here, never in the algorithms. ``load_robot(name)`` reads the spec;
-``load_model(spec, ...)`` builds the ``mujoco.MjModel`` (floor slope, solver accuracy) with two
-sensors every rollout reads: ``torso_pos`` (3) and ``torso_up`` (3, the torso's z axis in world
-coordinates).
+``load_model(spec, ...)`` builds the ``mujoco.MjModel`` (floor slope, solver accuracy) with the
+sensors the rollouts read: ``torso_pos`` (3), ``torso_up`` (3, the torso's z axis in world
+coordinates) and ``sole_pos_<geom>`` (3) per foot contact geom.
 """
 
 from __future__ import annotations
@@ -169,7 +169,17 @@ def _motor_fields(raw: dict[str, Any]) -> dict[str, Any]:
 
 def load_model(spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast"):
     """Compile the robot's ``mujoco.MjModel``: floor tilted by ``slope_deg`` (uphill along +x),
-    solver settings ``accuracy`` ("fast" | "accurate"), torso sensors, position servos."""
+    solver settings ``accuracy`` ("fast" | "accurate"), torso and sole sensors, position servos."""
+    return _model_spec(spec, slope_deg, accuracy)[1]
+
+
+def model_xml(spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast") -> str:
+    """The MJCF text of :func:`load_model`'s model (slope, solver and sensors included), for
+    exporting a run that replays on plain MuJoCo."""
+    return _model_spec(spec, slope_deg, accuracy)[0].to_xml()
+
+
+def _model_spec(spec: RobotSpec, slope_deg: float, accuracy: str):
     import mujoco
 
     if not math.isfinite(slope_deg) or abs(slope_deg) >= 45.0:
@@ -207,13 +217,17 @@ def load_model(spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast"):
                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname="torso_site")
         ms.add_sensor(name="torso_up", type=mujoco.mjtSensor.mjSENS_FRAMEZAXIS,
                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname="torso_site")
+    for geom in spec.foot_geoms:  # sole positions for the gait-quality metrics
+        if f"sole_pos_{geom}" not in names:
+            ms.add_sensor(name=f"sole_pos_{geom}", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+                          objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=geom)
     model = ms.compile()
     order = [model.actuator(i).name or model.joint(model.actuator_trnid[i, 0]).name
              for i in range(model.nu)]
     joints = [model.joint(model.actuator_trnid[i, 0]).name for i in range(model.nu)]
     if joints != list(spec.joint_names):
         raise ValueError(f"robot {spec.name}: actuator order {order} != spec joint_names")
-    return model
+    return ms, model
 
 
 def stand_qpos(spec: RobotSpec, model) -> list[float]:
