@@ -22,10 +22,10 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
-from mujoco import mjx
 
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import is_down
+from eaco_jax.gait.mjx_import import quiet_mjx
 from eaco_jax.gait.rollout_native import (
     floor_normal,
     initial_state,
@@ -46,6 +46,8 @@ from eaco_jax.gait.worlds import (
     world_ctrl_at,
 )
 from eaco_jax.robots import RobotSpec
+
+mjx = quiet_mjx()
 
 
 @functools.lru_cache(maxsize=16)
