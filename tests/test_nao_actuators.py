@@ -189,3 +189,21 @@ def test_backends_agree_walking_3s():
 @pytest.mark.slow
 def test_backends_agree_walking_20s():
     _agree(20.0, torso_tol=0.05, distance_tol=0.03)
+
+
+def test_turning_through_the_shared_hip_yaw_motor(nao):
+    """The walk engine commands both HipYawPitch joints alike (one motor) and still turns: the
+    torso's heading follows the sign of turn_rate."""
+    p = make_gait_problem("nao", backend="native", horizon=3.0)
+    heading = {}
+    for rate in (-0.3, 0.3):
+        g = _slow_walk()
+        g[we.PARAM_NAMES.index("turn_rate")] = rate
+        g[we.PARAM_NAMES.index("step_length")] = 0.04
+        sim = p.simulate(g, record=True)
+        np.testing.assert_array_equal(sim["controls"][:, nao.joint_names.index("LHipYawPitch")],
+                                      sim["controls"][:, nao.joint_names.index("RHipYawPitch")])
+        w, x, y, z = sim["qpos"][-1, 3:7]
+        heading[rate] = np.degrees(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+        assert not sim["fell"]
+    assert heading[0.3] > 15.0 and heading[-0.3] < -15.0
