@@ -5,13 +5,27 @@ horizon (cheap), then the best gait is re-simulated for ``--verify-horizon`` sec
 paper's 20 s) on the native and the MJX backend. ``--around PARAMS.json --radius R`` restricts
 the search box to ``R`` x (box width) around a stored gait (a second, local stage).
 
-Example (CPU)::
+``--robust R`` scores every ant in R randomised worlds (``RobustConfig``: friction, masses,
+motors, target noise and latency, initial pose, a push), aggregated by ``--aggregate`` (cvar,
+worst or mean); the worlds are fixed by ``--world-seed`` for the whole search (a deterministic
+objective). ``--penalty cot|power --penalty-weight W`` makes the fitness energy-aware.
+``--trials N`` then replays the best gait in N fresh randomised worlds (a key stream disjoint
+from the search's) on every verified backend, and ``--accurate-trials`` once more on native
+MuJoCo with its default solver settings.
 
-    python experiments/optimize_nao_gait.py --ants 16 --iterations 60 --horizon 6 \
-        --out experiments/results/nao_best_gait.json
+Example (CPU, ~10 min on 2 cores)::
 
-Prints progress and a table; writes JSON with the parameters (by name and as a vector) and the
-measured ``speed_mps``, ``distance_m``, ``fell``, ``drift_deg`` on each verified backend.
+    python experiments/optimize_nao_gait.py --ants 16 --iterations 40 --horizon 6 --robust 8 \
+        --trials 100 --out experiments/results/nao_robust_gait.json
+
+GPU (the lead's; MJX)::
+
+    python experiments/optimize_nao_gait.py --backend mjx --ants 4096 --archive 6144 \
+        --iterations 30 --horizon 10 --robust 16 --trials 100 --verify-backends mjx,native
+
+Prints progress and a table; writes JSON with the parameters (by name and as a vector), the
+measured ``speed_mps``, ``distance_m``, ``fell``, ``drift_deg`` and energy / gait-quality
+metrics on each verified backend, and the trials.
 """
 
 from __future__ import annotations
@@ -28,6 +42,8 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import eaco_jax as ea  # noqa: E402
+from eaco_jax.gait.validate import evaluate_trials  # noqa: E402
+from eaco_jax.gait.worlds import RobustConfig  # noqa: E402
 from eaco_jax.problems.gait import make_gait_problem  # noqa: E402
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO  # noqa: E402
 
@@ -51,14 +67,27 @@ def main() -> None:
     ap.add_argument("--radius", type=float, default=0.15)
     ap.add_argument("--verify-only", action="store_true",
                     help="no optimisation: verify the gait of --around and merge into --out")
+    ap.add_argument("--robust", type=int, default=0, help="randomised worlds per ant (0: none)")
+    ap.add_argument("--aggregate", default="cvar", choices=["cvar", "worst", "mean"])
+    ap.add_argument("--alpha", type=float, default=0.25, help="CVaR fraction of worst worlds")
+    ap.add_argument("--world-seed", type=int, default=0)
+    ap.add_argument("--penalty", default=None, choices=["cot", "power"])
+    ap.add_argument("--penalty-weight", type=float, default=0.0)
+    ap.add_argument("--trials", type=int, default=0, help="randomised validation trials")
+    ap.add_argument("--trial-seed", type=int, default=0)
+    ap.add_argument("--accurate-trials", action="store_true")
     ap.add_argument("--out", default="experiments/results/nao_best_gait.json")
     args = ap.parse_args()
     if args.verify_only:
         verify_only(args)
         return
 
+    robust = RobustConfig(R=args.robust, aggregate=args.aggregate, alpha=args.alpha,
+                          seed=args.world_seed) if args.robust else None
     problem = make_gait_problem(args.robot, backend=args.backend, horizon=args.horizon,
-                                direction_deg=args.direction, slope_deg=args.slope)
+                                direction_deg=args.direction, slope_deg=args.slope,
+                                robust=robust, penalty=args.penalty,
+                                penalty_weight=args.penalty_weight)
     full_lo, full_hi = np.asarray(problem.lower), np.asarray(problem.upper)
     if args.around:
         centre = np.asarray(json.loads(Path(args.around).read_text())["vector"], np.float32)
@@ -81,17 +110,11 @@ def main() -> None:
     best = np.asarray(result.best_solution, np.float32)
     seconds = time.time() - t0
     evaluations = int(np.asarray(result.evaluations))
-    steps = evaluations * problem.n_steps * round(problem.spec.control_dt / 0.004)
-    print(f"optimised in {seconds:.0f} s, {evaluations} rollouts of {args.horizon} s "
-          f"(~{steps / seconds:.0f} physics steps/s incl. compile)")
-
-    verified = {}
-    print(f"\n{'backend':8s} {'horizon':>7s} {'speed':>7s} {'dist':>7s} {'fell':>5s} {'drift':>6s}")
-    for backend in [b for b in args.verify_backends.split(",") if b]:
-        sim = problem.simulate(best, record=False, backend=backend, horizon=args.verify_horizon)
-        verified[backend] = {k: sim[k] for k in KEYS}
-        print(f"{backend:8s} {args.verify_horizon:7.1f} {sim['speed_mps']:7.3f} "
-              f"{sim['distance_m']:7.3f} {sim['fell']!s:>5s} {sim['drift_deg']:6.1f}", flush=True)
+    worlds = args.robust or 1
+    steps = evaluations * worlds * problem.n_steps * round(problem.spec.control_dt / 0.004)
+    print(f"optimised in {seconds:.0f} s, {evaluations} gaits x {worlds} worlds of "
+          f"{args.horizon} s (~{steps / seconds:.0f} physics steps/s incl. compile)")
+    verified = verify(problem, best, args)
     out = {
         "robot": args.robot,
         "slope_deg": args.slope,
@@ -99,6 +122,8 @@ def main() -> None:
         "params": problem.params_dict(best),
         "vector": best.tolist(),
         "optimisation": {
+            "robust": None if robust is None else dict(vars(robust)),
+            "penalty": args.penalty, "penalty_weight": args.penalty_weight,
             "backend": problem.backend, "horizon": args.horizon, "ants": args.ants,
             "archive": args.archive, "iterations": args.iterations, "seed": args.seed,
             "best_fitness": -float(result.best_cost), "evaluations": evaluations,
@@ -114,6 +139,38 @@ def main() -> None:
     print(f"wrote {args.out}")
 
 
+def verify(problem, vec: np.ndarray, args: argparse.Namespace) -> dict:
+    """Nominal 20 s run (with energy / gait-quality metrics) and randomised trials per backend."""
+    verified = {}
+    print(f"\n{'backend':8s} {'horizon':>7s} {'speed':>7s} {'dist':>7s} {'fell':>5s} {'drift':>6s}"
+          f" {'power':>6s} {'CoT':>5s}  trials: falls / n, speed +- ci95")
+    nominal = problem.replace(robust=None, penalty=None, horizon=args.verify_horizon)
+    for backend in [b for b in args.verify_backends.split(",") if b]:
+        t0 = time.time()
+        sim = nominal.simulate(vec, record=False, backend=backend)
+        res = {k: sim[k] for k in KEYS}
+        q = sim.get("quality", {})
+        res["quality"] = q
+        line = (f"{backend:8s} {args.verify_horizon:7.1f} {sim['speed_mps']:7.3f} "
+                f"{sim['distance_m']:7.3f} {sim['fell']!s:>5s} {sim['drift_deg']:6.1f} "
+                f"{q.get('mean_power_w', float('nan')):6.1f} "
+                f"{q.get('cost_of_transport', float('nan')):5.2f}")
+        if args.trials:
+            runs = [("trials", False)] + ([("trials_accurate", True)]
+                                          if args.accurate_trials and backend == "native" else [])
+            for key, accurate in runs:
+                tr = evaluate_trials(nominal.replace(backend=backend), vec, n=args.trials,
+                                     seed=args.trial_seed, accurate=accurate,
+                                     config=problem.robust)
+                res[key] = tr
+                line += (f"  {'acc ' if accurate else ''}{tr['falls']}/{tr['n']}, "
+                         f"{tr['speed_mps_mean']:.3f} +- {tr['speed_mps_ci95']:.3f}")
+        res["seconds"] = time.time() - t0
+        verified[backend] = res
+        print(line, flush=True)
+    return verified
+
+
 def verify_only(args: argparse.Namespace) -> None:
     """Re-simulate a stored gait on the requested backends; merge the results into --out."""
     if not args.around:
@@ -126,16 +183,7 @@ def verify_only(args: argparse.Namespace) -> None:
                                 slope_deg=slope)
     vec = np.asarray(raw["vector"], np.float32)
     verified = dict(raw.get("verified", {}))
-    print(f"{'backend':8s} {'horizon':>7s} {'speed':>7s} {'dist':>7s} {'fell':>5s} {'drift':>6s}"
-          f" {'seconds':>8s}")
-    for backend in [b for b in args.verify_backends.split(",") if b]:
-        t0 = time.time()
-        sim = problem.simulate(vec, record=False, backend=backend)
-        verified[backend] = {k: sim[k] for k in KEYS}
-        verified[backend]["seconds_incl_compile"] = time.time() - t0
-        print(f"{backend:8s} {args.verify_horizon:7.1f} {sim['speed_mps']:7.3f} "
-              f"{sim['distance_m']:7.3f} {sim['fell']!s:>5s} {sim['drift_deg']:6.1f} "
-              f"{time.time() - t0:8.0f}", flush=True)
+    verified.update(verify(problem, vec, args))
     raw["verified"] = verified
     raw["verify_horizon"] = args.verify_horizon
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)

@@ -2,10 +2,12 @@
 
 Each robot is an MJCF file plus a JSON spec beside it (``<name>.json``): actuated joint names in
 control order, the standing keyframe, control rate, solver settings for fast and for accurate
-simulation, the torso, the feet and the fall thresholds. Robot constants live here, never in the
-algorithms. ``load_robot(name)`` reads the spec; ``load_model(spec, ...)`` builds the
-``mujoco.MjModel`` (floor slope, solver accuracy) with two sensors every rollout reads:
-``torso_pos`` (3) and ``torso_up`` (3, the torso's z axis in world coordinates).
+simulation, the torso, the feet and the fall thresholds, and (NAO) the motor datasheet with its
+sources, from which :func:`motor_constants` derives every actuator constant of the MJCF. Robot
+constants live here, never in the algorithms. ``load_robot(name)`` reads the spec;
+``load_model(spec, ...)`` builds the ``mujoco.MjModel`` (floor slope, solver accuracy) with the
+sensors the rollouts read: ``torso_pos`` (3), ``torso_up`` (3, the torso's z axis in world
+coordinates) and ``sole_pos_<geom>`` (3) per foot contact geom.
 """
 
 from __future__ import annotations
@@ -42,6 +44,12 @@ class RobotSpec:
     fall_tilt_deg: float
     geometry: tuple[tuple[str, float], ...]
     position_servo: tuple[tuple[str, float], ...] = ()
+    # per actuator, of the share of a motor it drives (half a motor for a coupled pair):
+    stall_torque: tuple[float, ...] = ()  # [N m]
+    no_load_speed: tuple[float, ...] = ()  # [rad/s]
+    nominal_torque: tuple[float, ...] = ()  # continuous torque [N m]
+    coupled_joints: tuple[tuple[str, str], ...] = ()  # (leader, follower): one motor, equal angle
+    motor_tolerances: tuple[tuple[str, float], ...] = ()  # datasheet spread (fraction)
 
     @property
     def nu(self) -> int:
@@ -50,6 +58,11 @@ class RobotSpec:
     def geom(self, key: str) -> float:
         """A named geometric constant (e.g. ``"thigh"``) of the robot."""
         return dict(self.geometry)[key]
+
+    @property
+    def has_motors(self) -> bool:
+        """Whether the spec carries a motor datasheet (torque-speed envelope per actuator)."""
+        return bool(self.stall_torque)
 
     def solver(self, accuracy: str) -> dict[str, float]:
         if accuracy not in ("fast", "accurate"):
@@ -69,6 +82,38 @@ def _resolve_xml(ref: str) -> Path:
             raise ValueError("this robot uses an asset of the brax package; `pip install brax`")
         return Path(list(found.submodule_search_locations)[0]) / ref.removeprefix("brax:")
     return ROBOTS_DIR / ref
+
+
+def motor_constants(raw: dict[str, Any], joint_names: list[str]) -> dict[str, list[float]]:
+    """Per actuator constants derived from a spec's ``motors`` datasheet block.
+
+    Keys: ``stall``, ``no_load_speed``, ``nominal``, ``back_emf`` (= stall / no-load speed),
+    ``damping`` (back-EMF plus the friction loss as viscous drag matched at the no-load speed),
+    ``armature`` (rotor inertia x ratio^2) and ``kp`` (stall / the servo's full-voltage error).
+    A joint that shares its motor with another (``coupled_joints``) gets half of every
+    torque-like constant, so the pair acts as one motor on the shared angle.
+    """
+    motors = raw["motors"]
+    shared = {j for pair in raw.get("coupled_joints", []) for j in pair}
+    out: dict[str, list[float]] = {k: [] for k in (
+        "stall", "no_load_speed", "nominal", "back_emf", "damping", "armature", "kp")}
+    for name in joint_names:
+        key = name[1:] if name[:1] in "LR" and name[1:] in motors["joints"] else name
+        if key not in motors["joints"]:
+            raise ValueError(f"joint {name!r} has no motor in the spec's 'motors.joints'")
+        mtype, ratio = motors["joints"][key]
+        m = motors["types"][str(mtype)]
+        share = 0.5 if name in shared else 1.0
+        stall = m["stall_mNm"] * 1e-3 * ratio * share
+        speed = m["no_load_rpm"] * 2.0 * math.pi / 60.0 / ratio
+        out["stall"].append(stall)
+        out["no_load_speed"].append(speed)
+        out["nominal"].append(m["nominal_mNm"] * 1e-3 * ratio * share)
+        out["back_emf"].append(stall / speed)
+        out["damping"].append((1.0 + motors["frictionloss_fraction"]) * stall / speed)
+        out["armature"].append(m["rotor_inertia_kgm2"] * ratio**2 * share)
+        out["kp"].append(stall / motors["servo_full_voltage_error_rad"])
+    return out
 
 
 def load_robot(name: str) -> RobotSpec:
@@ -105,12 +150,36 @@ def load_robot(name: str) -> RobotSpec:
         fall_tilt_deg=float(raw["fall_tilt_deg"]),
         geometry=tuple(sorted(raw.get("geometry", {}).items())),
         position_servo=tuple(sorted(raw.get("position_servo", {}).items())),
+        **_motor_fields(raw),
+    )
+
+
+def _motor_fields(raw: dict[str, Any]) -> dict[str, Any]:
+    if "motors" not in raw:
+        return {}
+    mc = motor_constants(raw, raw["joint_names"])
+    return dict(
+        stall_torque=tuple(mc["stall"]),
+        no_load_speed=tuple(mc["no_load_speed"]),
+        nominal_torque=tuple(mc["nominal"]),
+        coupled_joints=tuple(tuple(p) for p in raw.get("coupled_joints", [])),
+        motor_tolerances=tuple(sorted(raw["motors"].get("tolerances", {}).items())),
     )
 
 
 def load_model(spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast"):
     """Compile the robot's ``mujoco.MjModel``: floor tilted by ``slope_deg`` (uphill along +x),
-    solver settings ``accuracy`` ("fast" | "accurate"), torso sensors, position servos."""
+    solver settings ``accuracy`` ("fast" | "accurate"), torso and sole sensors, position servos."""
+    return _model_spec(spec, slope_deg, accuracy)[1]
+
+
+def model_xml(spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast") -> str:
+    """The MJCF text of :func:`load_model`'s model (slope, solver and sensors included), for
+    exporting a run that replays on plain MuJoCo."""
+    return _model_spec(spec, slope_deg, accuracy)[0].to_xml()
+
+
+def _model_spec(spec: RobotSpec, slope_deg: float, accuracy: str):
     import mujoco
 
     if not math.isfinite(slope_deg) or abs(slope_deg) >= 45.0:
@@ -120,6 +189,8 @@ def load_model(spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast"):
     ms.option.timestep = opts["timestep"]
     ms.option.iterations = int(opts["iterations"])
     ms.option.ls_iterations = int(opts["ls_iterations"])
+    if "tolerance" in opts:
+        ms.option.tolerance = float(opts["tolerance"])
     ms.option.solver = mujoco.mjtSolver.mjSOL_NEWTON
     ms.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_EULERDAMP
@@ -146,13 +217,17 @@ def load_model(spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast"):
                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname="torso_site")
         ms.add_sensor(name="torso_up", type=mujoco.mjtSensor.mjSENS_FRAMEZAXIS,
                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname="torso_site")
+    for geom in spec.foot_geoms:  # sole positions for the gait-quality metrics
+        if f"sole_pos_{geom}" not in names:
+            ms.add_sensor(name=f"sole_pos_{geom}", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+                          objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=geom)
     model = ms.compile()
     order = [model.actuator(i).name or model.joint(model.actuator_trnid[i, 0]).name
              for i in range(model.nu)]
     joints = [model.joint(model.actuator_trnid[i, 0]).name for i in range(model.nu)]
     if joints != list(spec.joint_names):
         raise ValueError(f"robot {spec.name}: actuator order {order} != spec joint_names")
-    return model
+    return ms, model
 
 
 def stand_qpos(spec: RobotSpec, model) -> list[float]:

@@ -1,4 +1,4 @@
-"""Robot models: the NAO-scale humanoid loads with NAO's size, mass and joints and stands still;
+"""Robot models: the NAO-scale humanoid loads with NAO V5 size, mass and joints and stands still;
 the robot registry gives clear errors; brax's ant loads as a second robot."""
 
 import mujoco
@@ -17,7 +17,7 @@ def nao():
 def test_nao_model_matches_nao_specs(nao):
     model = load_model(nao)
     assert model.nu == 22 and len(nao.joint_names) == 22
-    assert sum(model.body_mass) == pytest.approx(4.5, abs=0.05)
+    assert sum(model.body_mass) == pytest.approx(5.25, abs=0.05)  # NAO V4/V5 link masses
     data = mujoco.MjData(model)
     data.qpos[3] = 1.0
     data.qpos[2] = nao.geom("thigh") + nao.geom("tibia") + nao.geom("foot_height") \

@@ -35,6 +35,16 @@ class GaitSummary:
     horizon: jnp.ndarray  # (...,) seconds simulated
 
 
+def is_down(pos, up, fall_height: float, fall_tilt_deg: float, slope_deg: float = 0.0, xp=jnp):
+    """Whether a torso sample ``pos``/``up`` ``(..., 3)`` counts as fallen (the fall rule).
+
+    ``xp`` is ``jax.numpy`` or ``numpy``: the rollouts test it inside their loops, on either side.
+    """
+    floor_z = pos[..., 0] * math.tan(math.radians(slope_deg))
+    height = pos[..., 2] - floor_z
+    return (height < fall_height) | (up[..., 2] < math.cos(math.radians(fall_tilt_deg)))
+
+
 def summarize(
     pos: jnp.ndarray,
     up: jnp.ndarray,
@@ -53,9 +63,7 @@ def summarize(
     finite = jnp.all(jnp.isfinite(pos), axis=(-1, -2)) & jnp.all(jnp.isfinite(up), axis=(-1, -2))
     pos = jnp.nan_to_num(pos, nan=0.0, posinf=0.0, neginf=0.0)
     up = jnp.nan_to_num(up, nan=0.0, posinf=0.0, neginf=0.0)
-    floor_z = pos[..., 0] * math.tan(math.radians(slope_deg))
-    height = pos[..., 2] - floor_z
-    down = (height < fall_height) | (up[..., 2] < math.cos(math.radians(fall_tilt_deg)))
+    down = is_down(pos, up, fall_height, fall_tilt_deg, slope_deg)
     fell = jnp.any(down, axis=-1)
     first = jnp.where(fell, jnp.argmax(down, axis=-1), n - 1)
     end_xy = jnp.take_along_axis(pos[..., :2], first[..., None, None], axis=-2)[..., 0, :]
@@ -90,3 +98,20 @@ def gait_fitness(summary: GaitSummary, direction_deg: float = 0.0) -> dict[str, 
         "fell": summary.fell | ~summary.finite,
         "drift_deg": jnp.where(summary.finite, drift, 180.0),
     }
+
+
+AGGREGATES = ("mean", "worst", "cvar")
+
+
+def aggregate(values: jnp.ndarray, how: str = "mean", alpha: float = 0.25) -> jnp.ndarray:
+    """Reduce per-world values ``(..., R)`` to one per gait: the mean, the worst (min) or the
+    CVaR-``alpha``, the mean of the worst ``ceil(alpha R)`` worlds (higher is better)."""
+    if how == "mean":
+        return jnp.mean(values, axis=-1)
+    if how == "worst":
+        return jnp.min(values, axis=-1)
+    if how == "cvar":
+        r = values.shape[-1]
+        k = max(1, math.ceil(alpha * r))
+        return jnp.mean(jnp.sort(values, axis=-1)[..., :k], axis=-1)
+    raise ValueError(f"aggregate must be one of {', '.join(AGGREGATES)}, got {how!r}")

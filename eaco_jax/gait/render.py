@@ -1,27 +1,77 @@
 """Offscreen video of a simulated gait (MP4 through imageio-ffmpeg, or GIF).
 
-MuJoCo picks its OpenGL backend from ``MUJOCO_GL`` when it is first imported; headless machines
-need ``egl`` (GPU or Mesa) or ``osmesa``. :func:`ensure_headless_gl` sets ``egl`` if the user has
-not chosen, and :func:`render_video` raises :class:`RenderUnavailable` with the reason when no
-context can be made, so callers can say so and skip only the video.
+MuJoCo picks its OpenGL backend from ``MUJOCO_GL`` when it is first imported, and importing it
+with ``MUJOCO_GL=egl`` on a host without a loadable libEGL crashes. :func:`ensure_headless_gl`
+(call it before anything imports mujoco) therefore chooses, when no display is set: ``egl`` only
+if libEGL loads, else ``osmesa`` only if libOSMesa loads, else ``disable`` (no video, and
+:data:`GL_NOTE` says why in one line naming ``MUJOCO_GL``); with ``video=False`` it sets
+``disable`` without probing anything. A user's own ``MUJOCO_GL`` is kept unless it names a
+library that does not load. :func:`render_video` raises :class:`RenderUnavailable` with the
+reason when no context can be made, so callers can say so and skip only the video.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+import importlib.util
 import os
 from pathlib import Path
 
 import numpy as np
+
+_LIBS = {"egl": ("EGL", "libEGL.so.1"), "osmesa": ("OSMesa", "libOSMesa.so.8")}
+GL_NOTE: str | None = None
+"""Why offscreen video is off on this host (one line), or None."""
 
 
 class RenderUnavailable(RuntimeError):
     """No offscreen OpenGL context could be created on this machine."""
 
 
-def ensure_headless_gl() -> None:
-    """Default ``MUJOCO_GL`` to ``egl`` when no display is set (call before importing mujoco)."""
-    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-        os.environ["MUJOCO_GL"] = "egl"
+def gl_library_loads(backend: str) -> bool:
+    """Whether the shared library MuJoCo's ``backend`` ("egl" | "osmesa") needs can be loaded
+    (and PyOpenGL, which MuJoCo drives it through, is installed). Loads no GL context."""
+    if importlib.util.find_spec("OpenGL") is None:
+        return False
+    name, fallback = _LIBS[backend]
+    for candidate in (ctypes.util.find_library(name), fallback):
+        if not candidate:
+            continue
+        try:
+            ctypes.CDLL(candidate)
+            return True
+        except OSError:
+            continue
+    return False
+
+
+def ensure_headless_gl(video: bool = True) -> str | None:
+    """Set ``MUJOCO_GL`` so that importing mujoco cannot crash (call before importing mujoco);
+    return the backend chosen (None: a display is set and the user chose nothing)."""
+    global GL_NOTE
+    chosen = os.environ.get("MUJOCO_GL", "").strip().lower()
+    if not video and not chosen:
+        os.environ["MUJOCO_GL"] = "disable"
+        GL_NOTE = "video off (--no-video): MUJOCO_GL=disable"
+        return "disable"
+    if chosen in _LIBS:
+        if not gl_library_loads(chosen):
+            GL_NOTE = (f"MUJOCO_GL={chosen} but lib{_LIBS[chosen][0]} does not load here: "
+                       "video off (install it, or set MUJOCO_GL=osmesa/egl to one that loads)")
+            os.environ["MUJOCO_GL"] = "disable"
+            return "disable"
+        return chosen
+    if chosen or os.environ.get("DISPLAY"):
+        return chosen or None
+    for backend in ("egl", "osmesa"):
+        if gl_library_loads(backend):
+            os.environ["MUJOCO_GL"] = backend
+            return backend
+    os.environ["MUJOCO_GL"] = "disable"
+    GL_NOTE = ("no display and neither libEGL nor libOSMesa loads: video off "
+               "(install libegl1 or libosmesa6 and set MUJOCO_GL=egl or osmesa)")
+    return "disable"
 
 
 def render_frames(
@@ -38,6 +88,8 @@ def render_frames(
     """Render one RGB frame per row of ``qpos`` (T, nq); the camera follows ``track_body``."""
     import mujoco
 
+    if os.environ.get("MUJOCO_GL", "").strip().lower() in ("disable", "disabled", "off"):
+        raise RenderUnavailable(GL_NOTE or "MUJOCO_GL=disable: offscreen rendering is off")
     try:
         renderer = mujoco.Renderer(model, height=height, width=width)
     except Exception as err:  # GL context creation failures come as several exception types

@@ -1,10 +1,18 @@
 """Batched gait rollouts on MJX: a ``lax.scan`` over control steps of ``vmap(mjx.step)``.
 
-Each control step sets the ant's precomputed position targets (the walk engine's output at
-``t = k * control_dt``) and runs ``substeps`` ``mjx.step`` calls holding them. Only the torso
-trace ``(T + 1, 6)`` per ant (root position and up axis after each control step, row 0 = start)
-is kept, the same as the native backend returns; ``record=True`` also returns the joint
-positions ``qpos`` after each control step (for plots).
+Each control step sets the rollouts' position targets (the walk engine's output at
+``t = k * control_dt``, precomputed for every ant) and runs ``substeps`` ``mjx.step`` calls holding
+them. Only the torso trace ``(B, T + 1, 6)`` (root position and up axis after each control step,
+row 0 = start) is kept, the same as the native backend returns; ``record=True`` also returns
+``qpos`` after each control step (for plots and videos).
+
+With ``worlds`` (:mod:`eaco_jax.gait.worlds`) every ant runs in each of the R worlds, rollout
+``b = a * R + r``, all in one ``vmap``: the model is batched over the varied fields
+(``in_axes`` 0 on them, ``None`` elsewhere), the targets get each world's latency and noise
+inside the scan, the initial poses and pushes are per world. With ``quality`` the scan also
+accumulates the energy and gait-quality terms of :mod:`eaco_jax.gait.quality` (the physics
+substeps then run as a small ``scan`` that keeps joint positions and speeds); without it the
+loop body holds nothing but physics.
 """
 
 from __future__ import annotations
@@ -13,11 +21,33 @@ import functools
 
 import jax
 import jax.numpy as jnp
-from mujoco import mjx
+import numpy as np
 
-from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
+from eaco_jax.gait import quality as ql
+from eaco_jax.gait.fitness import is_down
+from eaco_jax.gait.mjx_import import quiet_mjx
+from eaco_jax.gait.rollout_native import (
+    floor_normal,
+    initial_state,
+    native_model,
+    nominal_motor,
+    substeps,
+)
 from eaco_jax.gait.walk_engine import stand_pose
+from eaco_jax.gait.worlds import (
+    VARIED_FIELDS,
+    Worlds,
+    actuated_dofs,
+    couple_controls,
+    friction_geom_ids,
+    initial_qpos,
+    model_fields,
+    push_at,
+    world_ctrl_at,
+)
 from eaco_jax.robots import RobotSpec
+
+mjx = quiet_mjx()
 
 
 @functools.lru_cache(maxsize=16)
@@ -38,6 +68,120 @@ def root_trace(qpos: jax.Array) -> jax.Array:
     return jnp.concatenate([qpos[..., :3], up], -1)
 
 
+def _world_model(mm: mjx.Model, fields: dict[str, jax.Array], world_of: jax.Array):
+    """``mm`` with the varied fields batched per rollout, and the matching ``in_axes``."""
+    batched = mm.tree_replace({k: jnp.take(v, world_of, axis=0) for k, v in fields.items()})
+    axes = jax.tree.map(lambda _: None, mm).tree_replace({k: 0 for k in fields})
+    return batched, axes
+
+
+def mjx_rollout(
+    controls: jax.Array,
+    spec: RobotSpec,
+    slope_deg: float = 0.0,
+    accuracy: str = "fast",
+    worlds: Worlds | None = None,
+    quality: bool = False,
+    record: bool = False,
+) -> dict[str, jax.Array]:
+    """Roll out the ants' targets ``controls`` ``(A, T, nu)`` on MJX (in R worlds if given).
+
+    Returns ``trace`` ``(B, T + 1, 6)``, ``qpos`` ``(B, T + 1, nq)`` with ``record`` and the
+    quality accumulators ``acc`` with ``quality``; ``B = A * R`` (R = 1 without worlds).
+    Traceable: call it inside jit / scan.
+    """
+    model = native_model(spec, float(slope_deg), accuracy)
+    k = substeps(spec, model)
+    mm = mjx_model(spec, float(slope_deg), accuracy)
+    a, n_steps, nu = controls.shape
+    controls = controls.astype(jnp.float32)
+    qpos0 = jnp.asarray(initial_state(spec, model, slope_deg)[1 : 1 + model.nq], jnp.float32)
+    ctrl0 = jnp.asarray(stand_pose(spec, slope_deg), jnp.float32)
+    r = 1 if worlds is None else worlds.size
+    nb = a * r
+    world_of = jnp.arange(nb) % r
+    dofs = np.asarray(actuated_dofs(model, spec))
+    if worlds is None:
+        step = jax.vmap(lambda d: mjx.step(mm, d))
+        data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
+        data = jax.tree.map(lambda x: jnp.broadcast_to(x, (nb,) + x.shape), data)
+        motor = nominal_motor(spec, model) if quality else None
+        mp = None if motor is None else ql.MotorParams(
+            *(jnp.broadcast_to(jnp.asarray(x, jnp.float32), (nb, nu))[:, None] for x in motor))
+    else:
+        base = {f: getattr(mm, f) for f in VARIED_FIELDS}
+        fields = model_fields(base, worlds, friction_geom_ids(model, spec), dofs)
+        mmb, axes = _world_model(mm, fields, world_of)
+        step = jax.vmap(mjx.step, in_axes=(axes, 0))
+        qadr = np.array([model.joint(n).qposadr[0] for n in spec.joint_names])
+        qinit = initial_qpos(qpos0, worlds, qadr, np.asarray(spec.joint_lower, np.float32),
+                             np.asarray(spec.joint_upper, np.float32))
+        d0 = mjx.make_data(mm).replace(ctrl=ctrl0)
+        data = jax.vmap(lambda m_, q: mjx.forward(m_, d0.replace(qpos=q)), in_axes=(axes, 0))(
+            mmb, jnp.take(qinit, world_of, axis=0))
+        mp = None
+        if quality:
+            motor = ql.motor_params(fields, spec, dofs, model.actuator_ctrlrange,
+                                    worlds.stall_scale, worlds.speed_scale)
+            mp = ql.MotorParams(*(jnp.take(jnp.broadcast_to(jnp.asarray(x, jnp.float32),
+                                                            (r, nu)), world_of, axis=0)[:, None]
+                                  for x in motor))
+    sole_adr = None
+    if quality:
+        sole_adr = np.concatenate([model.sensor_adr[model.sensor(n).id] + np.arange(3)
+                                   for n in ql.sole_sensor_names(spec)])
+        normal = floor_normal(slope_deg)
+        radius = float(model.geom_size[model.geom(spec.foot_geoms[0]).id, 0])
+    qadr_all = np.array([model.joint(n).qposadr[0] for n in spec.joint_names])
+    dt = float(model.opt.timestep)
+
+    def targets(t):
+        if worlds is None:
+            return couple_controls(controls[:, t], spec)
+        return world_ctrl_at(controls, t, worlds, spec).reshape(nb, nu)
+
+    def control_step(carry, t):
+        d, acc, alive = carry
+        u = targets(t)
+        d = d.replace(ctrl=u)
+        if worlds is not None:
+            qfrc = jnp.zeros((nb, model.nv), jnp.float32)
+            qfrc = qfrc.at[:, :3].set(jnp.take(push_at(t, worlds), world_of, axis=0))
+            d = d.replace(qfrc_applied=qfrc)
+        if quality:
+            def sub(dd, _):
+                q = dd.qpos[:, qadr_all]
+                dd = step(dd) if worlds is None else step(mmb, dd)
+                return dd, (q, dd.qvel[:, dofs])
+
+            d, (q, qdot) = jax.lax.scan(sub, d, None, length=k)
+            keep = jnp.broadcast_to(alive[:, None], (nb, k))
+            acc = ql.add_physics(acc, jnp.swapaxes(q, 0, 1), jnp.swapaxes(qdot, 0, 1),
+                                 u[:, None], keep, mp, dt)
+            soles = d.sensordata[:, sole_adr].reshape(nb, 1, -1, 3)
+            acc = ql.add_control(acc, soles, alive[:, None], normal, radius)
+        elif worlds is None:
+            d = jax.lax.fori_loop(0, k, lambda _, dd: step(dd), d)
+        else:
+            d = jax.lax.fori_loop(0, k, lambda _, dd: step(mmb, dd), d)
+        row = root_trace(d.qpos)
+        alive = alive & ~is_down(row[:, :3], row[:, 3:], spec.fall_height, spec.fall_tilt_deg,
+                                 slope_deg)
+        return (d, acc, alive), (row, d.qpos if record else None)
+
+    start = root_trace(data.qpos)
+    alive0 = ~is_down(start[:, :3], start[:, 3:], spec.fall_height, spec.fall_tilt_deg, slope_deg)
+    acc0 = ql.new_acc((nb,), nu) if quality else None
+    (_, acc, _), (trace, qpos) = jax.lax.scan(control_step, (data, acc0, alive0),
+                                              jnp.arange(n_steps))
+    out = {"trace": jnp.swapaxes(jnp.concatenate([start[None], trace], 0), 0, 1)}
+    if record:
+        out["qpos"] = jnp.swapaxes(jnp.concatenate([data.qpos[None], qpos], 0), 0, 1)
+    if quality:
+        out["acc"] = acc
+    return out
+
+
 def mjx_trace(
     controls: jax.Array,
     spec: RobotSpec,
@@ -45,32 +189,10 @@ def mjx_trace(
     accuracy: str = "fast",
     record: bool = False,
 ):
-    """Roll out control sequences ``controls`` ``(ants, T, nu)`` on MJX.
+    """Roll out control sequences ``controls`` ``(ants, T, nu)`` on MJX (nominal world).
 
-    The walk engine's targets are computed before the rollout (one batched op over ants and
-    time), so the scan body holds nothing but physics: set ``ctrl``, ``substeps`` ``mjx.step``
-    calls, keep the torso pose. Returns the torso trace ``(ants, T + 1, 6)`` (and ``qpos``
-    ``(ants, T + 1, nq)`` when ``record``). Traceable: call it inside jit / scan.
+    Returns the torso trace ``(ants, T + 1, 6)`` (and ``qpos`` ``(ants, T + 1, nq)`` when
+    ``record``). Traceable: call it inside jit / scan.
     """
-    model = native_model(spec, float(slope_deg), accuracy)
-    k = substeps(spec, model)
-    mm = mjx_model(spec, float(slope_deg), accuracy)
-    qpos0 = jnp.asarray(initial_state(spec, model, slope_deg)[1 : 1 + model.nq], jnp.float32)
-    ctrl0 = jnp.asarray(stand_pose(spec, slope_deg), jnp.float32)
-    data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
-    m = controls.shape[0]
-    data = jax.tree.map(lambda a: jnp.broadcast_to(a, (m,) + a.shape), data)
-    step = jax.vmap(lambda d: mjx.step(mm, d))
-
-    def control_step(d, u):  # the whole colony: u (ants, nu)
-        d = jax.lax.fori_loop(0, k, lambda _, dd: step(dd), d.replace(ctrl=u))
-        return d, (root_trace(d.qpos), d.qpos if record else None)
-
-    _, (trace, qpos) = jax.lax.scan(control_step, data,
-                                    jnp.swapaxes(controls.astype(jnp.float32), 0, 1))
-    start = jnp.broadcast_to(root_trace(qpos0), (1, m, 6))
-    trace = jnp.swapaxes(jnp.concatenate([start, trace], 0), 0, 1)
-    if record:
-        qpos = jnp.concatenate([jnp.broadcast_to(qpos0, (1, m, qpos0.shape[0])), qpos], 0)
-        return trace, jnp.swapaxes(qpos, 0, 1)
-    return trace
+    out = mjx_rollout(controls, spec, slope_deg, accuracy, record=record)
+    return (out["trace"], out["qpos"]) if record else out["trace"]

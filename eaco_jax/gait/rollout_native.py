@@ -1,19 +1,25 @@
 """Batched gait rollouts on MuJoCo's C engine, across all CPU threads (``mujoco.rollout``).
 
-The controls are computed in JAX by the walk engine at the control rate, ``(ants, T, nu)``, and
-held for ``substeps`` physics steps each. ``mujoco.rollout`` runs the ants in parallel on a
-persistent thread pool (one ``MjData`` per thread); to keep memory small the horizon is cut into
-time chunks (the state at the end of a chunk starts the next) and only the root pose after each
-control step is kept. The result is the torso trace ``(ants, T + 1, 6)`` (position, up axis),
-row 0 being the initial pose, exactly what :func:`eaco_jax.gait.fitness.summarize` reads.
+The controls are computed in JAX by the walk engine at the control rate, ``(B, T, nu)``, and
+held for ``substeps`` physics steps each. ``mujoco.rollout`` runs the rollouts in parallel on a
+persistent thread pool (one ``MjData`` per thread, one ``MjModel`` per rollout when the worlds
+differ); to keep memory small the horizon is cut into time chunks (the state at the end of a chunk
+starts the next; MuJoCo's solver warm start restarts at a chunk boundary, a chunk is at least
+``STATE_BYTES_PER_CALL`` of states) and only the root pose after each control step is kept. The
+result is the torso trace ``(B, T + 1, 6)`` (position, up axis), row 0 being the initial pose,
+exactly what :func:`eaco_jax.gait.fitness.summarize` reads; with ``quality`` also the
+accumulators of :mod:`eaco_jax.gait.quality`, computed from every physics step of each chunk.
 
-:func:`native_trace` is the host function; :func:`native_trace_callback` wraps it with
-``jax.pure_callback`` so a jitted colony loop (``lax.scan`` in :func:`eaco_jax.driver.minimize`) can
-call it; batching over seeds is flattened into the ant axis.
+:func:`native_trace` is the plain host function (nominal world); :func:`native_rollout` the
+general one (per-rollout models, initial poses and pushes); :func:`native_rollout_callback` wraps
+it with ``jax.pure_callback`` so a jitted colony loop (``lax.scan`` in
+:func:`eaco_jax.driver.minimize`) can call it, randomised worlds included; batching over seeds is
+flattened into the rollout axis.
 """
 
 from __future__ import annotations
 
+import copy
 import functools
 import os
 
@@ -23,11 +29,27 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
+from eaco_jax.gait import quality as ql
+from eaco_jax.gait.fitness import is_down
 from eaco_jax.gait.walk_engine import stand_pose
+from eaco_jax.gait.worlds import (
+    VARIED_FIELDS,
+    Worlds,
+    actuated_dofs,
+    couple_controls,
+    friction_geom_ids,
+    initial_qpos,
+    model_fields,
+    push_at,
+    world_ctrl_at,
+)
 from eaco_jax.robots import RobotSpec, load_model, stand_qpos
 
-STATE_BYTES_PER_CALL = 64 * 2**20
+STATE_BYTES_PER_CALL = 256 * 2**20
 """Upper bound of the state buffer one ``mujoco.rollout`` call may fill (sets the chunk)."""
+
+_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_PUSH_SPEC = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED
 
 
 @functools.lru_cache(maxsize=16)
@@ -51,19 +73,21 @@ def substeps(spec: RobotSpec, model: mujoco.MjModel) -> int:
     return int(round(n))
 
 
-def initial_state(spec: RobotSpec, model: mujoco.MjModel, slope_deg: float) -> np.ndarray:
-    """Full physics state of the standing keyframe, soles parallel to the (inclined) floor."""
+def initial_state(spec: RobotSpec, model: mujoco.MjModel, slope_deg: float,
+                  qpos: np.ndarray | None = None) -> np.ndarray:
+    """Full physics state of the standing keyframe (soles parallel to the inclined floor), or of
+    the configuration ``qpos`` if given, at rest."""
     data = mujoco.MjData(model)
-    qpos = np.array(stand_qpos(spec, model))
-    pose = stand_pose(spec, slope_deg)
-    for name, value in zip(spec.joint_names, pose, strict=True):
-        qpos[model.joint(name).qposadr[0]] = value
+    if qpos is None:
+        qpos = np.array(stand_qpos(spec, model))
+        pose = stand_pose(spec, slope_deg)
+        for name, value in zip(spec.joint_names, pose, strict=True):
+            qpos[model.joint(name).qposadr[0]] = value
     data.qpos[:] = qpos
-    data.ctrl[:] = pose
+    data.ctrl[:] = stand_pose(spec, slope_deg)
     mujoco.mj_forward(model, data)
-    spec_full = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    state = np.empty(mujoco.mj_stateSize(model, spec_full))
-    mujoco.mj_getState(model, data, state, spec_full)
+    state = np.empty(mujoco.mj_stateSize(model, _STATE))
+    mujoco.mj_getState(model, data, state, _STATE)
     return state
 
 
@@ -72,6 +96,122 @@ def root_trace(qroot: np.ndarray) -> np.ndarray:
     w, x, y, z = (qroot[..., i] for i in range(3, 7))
     up = np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], -1)
     return np.concatenate([qroot[..., :3], up], -1).astype(np.float32)
+
+
+def floor_normal(slope_deg: float) -> np.ndarray:
+    """Unit normal of the floor plane (rising along +x by ``slope_deg``), through the origin."""
+    a = np.radians(slope_deg)
+    return np.array([-np.sin(a), 0.0, np.cos(a)], np.float32)
+
+
+def _sole_adr(model: mujoco.MjModel, spec: RobotSpec) -> np.ndarray:
+    return np.concatenate([model.sensor_adr[model.sensor(n).id] + np.arange(3)
+                           for n in ql.sole_sensor_names(spec)])
+
+
+def native_rollout(
+    controls: np.ndarray,
+    spec: RobotSpec,
+    slope_deg: float = 0.0,
+    accuracy: str = "fast",
+    *,
+    models: list[mujoco.MjModel] | None = None,
+    qpos_init: np.ndarray | None = None,
+    push: np.ndarray | None = None,
+    quality: bool = False,
+    motor: ql.MotorParams | None = None,
+    record_qpos: bool = False,
+    nthread: int | None = None,
+) -> dict[str, np.ndarray]:
+    """Roll out ``controls`` ``(B, T, nu)`` (each held for one control step) on the host.
+
+    ``models`` one per rollout (default: the nominal model), ``qpos_init`` ``(B, nq)`` initial
+    configurations at rest (default: the keyframe), ``push`` ``(B, T, 3)`` forces on the torso
+    per control step. Returns ``trace`` ``(B, T + 1, 6)``, with ``record_qpos`` also ``qpos``
+    ``(B, T + 1, nq)``, with ``quality`` the accumulators ``acc`` (``motor``: per-rollout
+    :class:`~eaco_jax.gait.quality.MotorParams` ``(B, nu)``, default from the nominal model).
+    """
+    controls = np.asarray(controls, np.float64)
+    if controls.ndim != 3 or controls.shape[-1] != spec.nu:
+        raise ValueError(f"controls must be (B, T, {spec.nu}), got {controls.shape}")
+    base = native_model(spec, float(slope_deg), accuracy)
+    k = substeps(spec, base)
+    nb, steps, _ = controls.shape
+    model_arg = base if models is None else list(models)
+    nthread = nthread or os.cpu_count() or 1
+    datas = [mujoco.MjData(base) for _ in range(nthread)]
+    if qpos_init is None:
+        state = np.tile(initial_state(spec, base, slope_deg), (nb, 1))
+    else:
+        state = np.stack([initial_state(spec, model_arg[i] if models else base, slope_deg,
+                                        qpos_init[i]) for i in range(nb)])
+    nstate = state.shape[1]
+    per_ctrl = max(1, STATE_BYTES_PER_CALL // (8 * nstate * k * max(nb, 1)))
+    trace = np.empty((nb, steps + 1, 6), np.float32)
+    trace[:, 0] = root_trace(state[:, 1:8])
+    qpos_rec = np.empty((nb, steps + 1, base.nq), np.float32) if record_qpos else None
+    if record_qpos:
+        qpos_rec[:, 0] = state[:, 1 : 1 + base.nq]
+    acc = None
+    if quality:
+        acc = ql.new_acc((nb,), spec.nu, xp=np)
+        motor = motor or nominal_motor(spec, base)
+        mp = ql.MotorParams(*(np.broadcast_to(np.asarray(a, np.float32), (nb, spec.nu))[:, None]
+                              for a in motor))
+        dofs = np.asarray(actuated_dofs(base, spec))
+        qadr = np.array([base.joint(n).qposadr[0] for n in spec.joint_names])
+        sole = _sole_adr(base, spec)
+        normal = floor_normal(slope_deg)
+        radius = float(base.geom_size[base.geom(spec.foot_geoms[0]).id, 0])
+        alive = ~is_down(trace[:, 0, :3], trace[:, 0, 3:], spec.fall_height, spec.fall_tilt_deg,
+                         slope_deg, xp=np)
+    pool = _pool(nthread)
+    for start in range(0, steps, per_ctrl):
+        stop = min(steps, start + per_ctrl)
+        ctrl = np.repeat(controls[:, start:stop], k, axis=1)
+        spec_bits = mujoco.mjtState.mjSTATE_CTRL
+        if push is not None:
+            qfrc = np.zeros(ctrl.shape[:2] + (base.nv,))
+            qfrc[..., :3] = np.repeat(np.asarray(push[:, start:stop], np.float64), k, axis=1)
+            ctrl = np.concatenate([ctrl, qfrc], axis=-1)
+            spec_bits = _PUSH_SPEC
+        out, sens = pool.rollout(model_arg, datas, state, ctrl, control_spec=int(spec_bits))
+        sampled = out[:, k - 1 :: k]  # state after each control step
+        rows = root_trace(sampled[..., 1:8])
+        trace[:, start + 1 : stop + 1] = rows
+        if record_qpos:
+            qpos_rec[:, start + 1 : stop + 1] = sampled[..., 1 : 1 + base.nq]
+        if quality:
+            down = is_down(rows[..., :3], rows[..., 3:], spec.fall_height, spec.fall_tilt_deg,
+                           slope_deg, xp=np)
+            # alive during control step t: samples 0..t upright
+            alive_k = alive[:, None] & np.concatenate(
+                [np.ones((nb, 1), bool), np.cumprod(~down[:, :-1], axis=1).astype(bool)], 1)
+            q_before = np.concatenate([state[:, None, 1 : 1 + base.nq], out[:, :-1, 1:1 + base.nq]],
+                                      axis=1)[..., qadr]
+            qdot = out[..., 1 + base.nq + dofs]
+            acc = ql.add_physics(acc, q_before.astype(np.float32), qdot.astype(np.float32),
+                                 ctrl[..., : spec.nu].astype(np.float32),
+                                 np.repeat(alive_k, k, axis=1), mp, float(base.opt.timestep),
+                                 xp=np)
+            soles = sens[:, k - 1 :: k][..., sole].reshape(nb, stop - start, -1, 3)
+            acc = ql.add_control(acc, soles.astype(np.float32), alive_k, normal, radius, xp=np)
+            alive = alive & ~np.any(down, axis=1)
+        state = np.ascontiguousarray(out[:, -1])
+    result: dict[str, np.ndarray] = {"trace": trace}
+    if record_qpos:
+        result["qpos"] = qpos_rec
+    if quality:
+        result["acc"] = {k_: np.asarray(v, np.float32) if v.dtype != bool else v
+                         for k_, v in acc.items()}
+    return result
+
+
+def nominal_motor(spec: RobotSpec, model: mujoco.MjModel) -> ql.MotorParams:
+    """Motor parameters of the model as compiled (no randomisation)."""
+    fields = {k: getattr(model, k) for k in VARIED_FIELDS}
+    return ql.motor_params(fields, spec, actuated_dofs(model, spec), model.actuator_ctrlrange,
+                           xp=np)
 
 
 def native_trace(
@@ -84,46 +224,112 @@ def native_trace(
 ):
     """Roll out ``controls`` ``(ants, T, nu)`` (held per control step); torso trace
     ``(ants, T + 1, 6)``, plus the joint angles ``(ants, T + 1, nq)`` if ``record_qpos``."""
-    controls = np.asarray(controls, np.float64)
-    if controls.ndim != 3 or controls.shape[-1] != spec.nu:
-        raise ValueError(f"controls must be (ants, T, {spec.nu}), got {controls.shape}")
-    model = native_model(spec, float(slope_deg), accuracy)
-    k = substeps(spec, model)
-    ants, steps, _ = controls.shape
-    nthread = nthread or os.cpu_count() or 1
-    datas = [mujoco.MjData(model) for _ in range(nthread)]
-    state = np.tile(initial_state(spec, model, slope_deg), (ants, 1))
-    nstate = state.shape[1]
-    per_ctrl = max(1, STATE_BYTES_PER_CALL // (8 * nstate * k * max(ants, 1)))
-    trace = np.empty((ants, steps + 1, 6), np.float32)
-    trace[:, 0] = root_trace(state[:, 1:8])
-    qpos_rec = np.empty((ants, steps + 1, model.nq), np.float32) if record_qpos else None
-    if record_qpos:
-        qpos_rec[:, 0] = state[:, 1 : 1 + model.nq]
-    pool = _pool(nthread)
-    for start in range(0, steps, per_ctrl):
-        stop = min(steps, start + per_ctrl)
-        ctrl = np.repeat(controls[:, start:stop], k, axis=1)
-        out, _ = pool.rollout(model, datas, state, ctrl)
-        sampled = out[:, k - 1 :: k]  # state after each control step
-        trace[:, start + 1 : stop + 1] = root_trace(sampled[..., 1:8])
-        if record_qpos:
-            qpos_rec[:, start + 1 : stop + 1] = sampled[..., 1 : 1 + model.nq]
-        state = np.ascontiguousarray(out[:, -1])
-    if record_qpos:
-        return trace, qpos_rec
-    return trace
+    out = native_rollout(couple_controls(np.asarray(controls), spec, xp=np), spec, slope_deg,
+                         accuracy, nthread=nthread, record_qpos=record_qpos)
+    return (out["trace"], out["qpos"]) if record_qpos else out["trace"]
+
+
+_WORLD_ARRAYS = ("friction", "mass_scale", "stall_scale", "speed_scale")
+
+
+class _WorldRow:
+    """One world's scale arrays with a leading axis of 1 (what model_fields reads)."""
+
+    def __init__(self, **arrays: np.ndarray) -> None:
+        for k, v in arrays.items():
+            setattr(self, k, np.asarray(v)[None])
+
+
+def _world_models(base: mujoco.MjModel, spec: RobotSpec, w: dict[str, np.ndarray]):
+    """Per rollout ``MjModel`` and motor parameters; equal worlds share one model."""
+    cache: dict[bytes, mujoco.MjModel] = {}
+    fields_base = {k: getattr(base, k) for k in VARIED_FIELDS}
+    geoms, dofs = friction_geom_ids(base, spec), actuated_dofs(base, spec)
+    models, motors = [], []
+    for i in range(w["friction"].shape[0]):
+        row = _WorldRow(**{k: w[k][i] for k in _WORLD_ARRAYS})
+        key = b"".join(np.ascontiguousarray(getattr(row, k)).tobytes() for k in _WORLD_ARRAYS)
+        fields = model_fields(fields_base, row, geoms, dofs, xp=np)
+        if key not in cache:
+            m = copy.copy(base)
+            for name, v in fields.items():
+                getattr(m, name)[...] = v[0]
+            cache[key] = m
+        models.append(cache[key])
+        motors.append(ql.motor_params({n: v[0] for n, v in fields.items()}, spec, dofs,
+                                      base.actuator_ctrlrange, row.stall_scale[0],
+                                      row.speed_scale[0], xp=np))
+    motor = ql.MotorParams(*(np.stack([m[j] for m in motors]) for j in range(len(motors[0]))))
+    return models, motor
+
+
+def native_rollout_callback(
+    controls: jax.Array,
+    spec: RobotSpec,
+    slope_deg: float = 0.0,
+    accuracy: str = "fast",
+    worlds: Worlds | None = None,
+    quality: bool = False,
+):
+    """:func:`native_rollout` as a ``jax.pure_callback`` (usable under jit, vmap and scan).
+
+    ``controls`` ``(A, T, nu)``; with ``worlds`` (R of them) every ant runs in every world, rollout
+    ``b = a * R + r``. Returns ``trace`` ``(B, T + 1, 6)`` and, with ``quality``, ``acc`` (dict of
+    accumulators, leading axis B). The worlds' targets, pushes and initial poses are computed here
+    in JAX by the same functions the MJX backend uses.
+    """
+    base = native_model(spec, float(slope_deg), accuracy)
+    a, t, nu = controls.shape[-3:]
+    lead = controls.shape[:-3]
+    if worlds is None:
+        r = 1
+        ctrl = couple_controls(controls, spec)
+        args: dict[str, jax.Array] = {"ctrl": ctrl}
+    else:
+        r = worlds.size
+        steps = jnp.arange(t)
+        per_t = jax.vmap(lambda s: world_ctrl_at(controls, s, worlds, spec), out_axes=2)(steps)
+        ctrl = per_t.reshape(lead + (a * r, t, nu))
+        push = jax.vmap(lambda s: push_at(s, worlds), out_axes=1)(steps)  # (R, T, 3)
+        qpos0 = initial_state(spec, base, slope_deg)[1 : 1 + base.nq]
+        qadr = np.array([base.joint(n).qposadr[0] for n in spec.joint_names])
+        lo, hi = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
+        qinit = initial_qpos(jnp.asarray(qpos0, jnp.float32), worlds, qadr, lo, hi)
+        tile = lambda x: jnp.broadcast_to(  # noqa: E731
+            x[None], lead + (a,) + x.shape).reshape(lead + (a * r,) + x.shape[1:])
+        args = {"ctrl": ctrl, "push": tile(push), "qinit": tile(qinit)}
+        for k in _WORLD_ARRAYS:
+            args[k] = tile(getattr(worlds, k))
+    nb = a * r
+    shapes: dict[str, jax.ShapeDtypeStruct] = {
+        "trace": jax.ShapeDtypeStruct(lead + (nb, t + 1, 6), jnp.float32)}
+    if quality:
+        template = ql.new_acc((nb,), nu, xp=np)
+        shapes["acc"] = {k: jax.ShapeDtypeStruct(lead + v.shape, v.dtype)
+                         for k, v in template.items()}
+    names = sorted(args)
+    trailing = {n: v.ndim - len(lead) - 1 for n, v in args.items()}  # dims after the rollout axis
+
+    def host(*values):
+        kw = {n: np.asarray(v) for n, v in zip(names, values, strict=True)}
+        extra = kw["ctrl"].shape[:-3]  # seeds / vmapped axes, flattened into the rollout axis
+        flat = {n: v.reshape((-1,) + v.shape[v.ndim - trailing[n]:]) for n, v in kw.items()}
+        opts: dict = {}
+        if worlds is not None:
+            models, motor = _world_models(base, spec, {k: flat[k] for k in _WORLD_ARRAYS})
+            opts = dict(models=models, motor=motor, qpos_init=flat["qinit"].astype(np.float64),
+                        push=flat["push"])
+        out = native_rollout(flat["ctrl"], spec, slope_deg, accuracy, quality=quality, **opts)
+        res = {"trace": out["trace"].reshape(extra + (nb, t + 1, 6))}
+        if quality:
+            res["acc"] = {k: v.reshape(extra + (nb,) + v.shape[1:]) for k, v in out["acc"].items()}
+        return res
+
+    return jax.pure_callback(host, shapes, *(args[n] for n in names), vmap_method="broadcast_all")
 
 
 def native_trace_callback(
     controls: jax.Array, spec: RobotSpec, slope_deg: float = 0.0, accuracy: str = "fast"
 ) -> jax.Array:
     """:func:`native_trace` as a ``jax.pure_callback`` (usable under jit, vmap and scan)."""
-    shape = jax.ShapeDtypeStruct(controls.shape[:-2] + (controls.shape[-2] + 1, 6), jnp.float32)
-
-    def host(c: np.ndarray) -> np.ndarray:
-        flat = np.asarray(c).reshape((-1,) + c.shape[-2:])
-        out = native_trace(flat, spec, slope_deg, accuracy)
-        return out.reshape(c.shape[:-2] + out.shape[-2:])
-
-    return jax.pure_callback(host, shape, controls, vmap_method="broadcast_all")
+    return native_rollout_callback(controls, spec, slope_deg, accuracy)["trace"]

@@ -7,7 +7,8 @@ smooth profile and is lifted by ``foot_lift``. The left foot leads the right by 
 the body speed is ``s / (d T)``. The hip sways sideways toward the stance foot, the torso leans
 by ``torso_pitch``, the arms swing against the legs, and hip-roll / ankle compensations counter
 the body sag. The step direction (relative to the desired direction of the problem) and a turn
-rate give omnidirectional walking. Foot and hip trajectories are turned into joint targets by
+rate give omnidirectional walking (turning through the one HipYawPitch motor both legs share,
+the feet yawing symmetrically). Foot and hip trajectories are turned into joint targets by
 the analytic leg IK of :mod:`eaco_jax.gait.ik`. During the first ``RAMP_TIME`` seconds every
 amplitude grows linearly from the standing pose, so every gait starts from the same keyframe.
 On a slope the feet follow the inclined floor and the soles stay parallel to it.
@@ -133,6 +134,10 @@ def _biped_targets(
     cdir, sdir = jnp.cos(heading + p.direction), jnp.sin(heading + p.direction)
     out = jnp.asarray(spec.stand_ctrl, jnp.float32)
     names = spec.joint_names
+    # One motor drives both HipYawPitch joints (robots/nao.xml): the feet yaw by +psi (left) and
+    # -psi (right) relative to the torso, which turns the body by the stance foot's yaw change.
+    xi_l, xi_r = _foot(phase_l, p.duty_ratio)[0], _foot(phase_r, p.duty_ratio)[0]
+    psi = p.turn_rate * p.duty_ratio * p.period * ramp * (xi_l - xi_r) / 2.0
     for side, phase, sign in (("L", phase_l, 1.0), ("R", phase_r, -1.0)):
         xi, lift, bump = _foot(phase, p.duty_ratio)
         along = s * xi
@@ -143,13 +148,12 @@ def _biped_targets(
             # on a slope (rising along +x) a foot ahead of the hip lands higher
             -(h - foot_h) + p.foot_lift * ramp * lift + ankle_x * tan_slope,
         ])
-        yaw = p.turn_rate * p.duty_ratio * p.period * xi * ramp
-        q = leg_ik(ankle, yaw, thigh, tibia)
+        q = leg_ik(ankle, sign * psi, thigh, tibia)
         hip_roll = q[1] + sign * p.hip_roll_comp * ramp * bump
         hip_pitch = q[2] - p.torso_pitch * ramp
         ankle_pitch = q[4] + p.ankle_pitch_comp * ramp - slope  # sole parallel to the floor
         ankle_roll = q[5] + sign * p.ankle_roll_comp * ramp
-        values = (q[0], hip_roll, hip_pitch, q[3], ankle_pitch, ankle_roll)
+        values = (psi, hip_roll, hip_pitch, q[3], ankle_pitch, ankle_roll)  # RHipYawPitch: -z
         for joint, v in zip(("HipYawPitch", "HipRoll", "HipPitch", "KneePitch", "AnklePitch",
                              "AnkleRoll"), values, strict=True):
             out = out.at[names.index(side + joint)].set(v)

@@ -5,7 +5,16 @@ MuJoCo's C engine through a ``jax.pure_callback``) and returns ``f = -fitness`` 
 distance-based gait fitness, :mod:`eaco_jax.gait.fitness`; minimised, so lower is better) with
 zero violation. ``backend="auto"`` picks ``"mjx"`` on GPU/TPU and ``"native"`` on CPU, where the
 C engine is an order of magnitude faster. ``simulate(params)`` re-runs one gait and returns what
-plots and reports need (time, joint angles, torso trajectory, speed, distance, fall, drift).
+plots and reports need (time, joint angles, torso trajectory, speed, distance, fall, drift, and
+the energy / gait-quality metrics of :mod:`eaco_jax.gait.quality`).
+
+``robust=RobustConfig(R=8, aggregate="cvar", ...)`` evaluates every ant in R randomised worlds
+(:mod:`eaco_jax.gait.worlds`), ants x R in one batched rollout, and aggregates the per-world
+fitness. ``evaluate(X, key)`` draws the worlds from ``key`` (a driver passes
+``world_key(seed, iteration)``); without a key the worlds are fixed by ``robust.seed``.
+``penalty="power"`` or ``"cot"`` (weight ``penalty_weight``, off by default) subtracts the energy
+cost from each world's fitness: ``"cot"``: ``d - w E / (m g)`` (= ``d (1 - w CoT)``),
+``"power"``: ``d - w P_mean`` (metres per watt).
 """
 
 from __future__ import annotations
@@ -19,14 +28,24 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from eaco_jax.gait.fitness import GaitSummary, gait_fitness, summarize
-from eaco_jax.gait.rollout_mjx import mjx_trace
-from eaco_jax.gait.rollout_native import native_model, native_trace, native_trace_callback
+from eaco_jax.gait import quality as ql
+from eaco_jax.gait.fitness import GaitSummary, aggregate, gait_fitness, summarize
+from eaco_jax.gait.rollout_mjx import mjx_rollout
+from eaco_jax.gait.rollout_native import (
+    native_model,
+    native_rollout,
+    native_rollout_callback,
+)
 from eaco_jax.gait.walk_engine import bounds, control_sequence, param_names
+from eaco_jax.gait.worlds import RobustConfig, Worlds, couple_controls, sample_worlds, world_key
 from eaco_jax.problems.base import Evaluation, ProblemError
 from eaco_jax.robots import RobotSpec, known_robots, load_robot
 
 BACKENDS = ("auto", "mjx", "native")
+PENALTIES = (None, "power", "cot")
+QUALITY_SCALARS = ("energy_j", "mean_power_w", "peak_power_w", "cost_of_transport",
+                   "peak_speed_frac", "peak_torque_frac", "foot_slip_m", "airborne_fraction",
+                   "min_foot_gap_m")
 
 
 @struct.dataclass
@@ -42,6 +61,9 @@ class GaitProblem:
     slope_deg: float = struct.field(pytree_node=False, default=0.0)
     accuracy: str = struct.field(pytree_node=False, default="fast")
     name: str = struct.field(pytree_node=False, default="gait")
+    robust: RobustConfig | None = struct.field(pytree_node=False, default=None)
+    penalty: str | None = struct.field(pytree_node=False, default=None)
+    penalty_weight: float = struct.field(pytree_node=False, default=0.0)
 
     kind = "continuous"
     differentiable = False  # a simulation: no gradient repair / refinement steps
@@ -70,28 +92,110 @@ class GaitProblem:
             p, self.n_steps, self.spec, heading, self.slope_deg))(solutions)
 
     def trace(self, solutions: jax.Array) -> jax.Array:
-        """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` on this backend."""
-        controls = self.controls(solutions)
-        if self.backend == "mjx":
-            return mjx_trace(controls, self.spec, self.slope_deg, self.accuracy)
-        return native_trace_callback(controls, self.spec, self.slope_deg, self.accuracy)
+        """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` in the nominal world."""
+        return self._rollout(solutions, None, False)["trace"]
 
     def summarize(self, trace: jax.Array) -> GaitSummary:
         return summarize(trace[..., :3], trace[..., 3:], self.spec.control_dt,
                          self.spec.fall_height, self.spec.fall_tilt_deg, self.slope_deg)
 
-    def metrics(self, solutions: jax.Array) -> dict[str, jax.Array]:
-        """Fitness, distance_m, speed_mps, fell, drift_deg of each gait ``(m, dim)``."""
-        return gait_fitness(self.summarize(self.trace(solutions)), self.direction_deg)
+    def worlds(self, key: jax.Array | None = None, n: int | None = None) -> Worlds:
+        """The randomised worlds of one evaluation: ``n`` (default ``robust.R``) worlds drawn
+        from ``key`` (default: fixed by ``robust.seed``)."""
+        cfg = self.robust or RobustConfig()
+        key = world_key(cfg.seed, 0) if key is None else key
+        nbody = native_model(self.spec, float(self.slope_deg), self.accuracy).nbody
+        return sample_worlds(key, cfg, self.spec, nbody, self.n_steps, n)
 
-    def evaluate(self, solutions: jax.Array) -> Evaluation:
-        """``Evaluation(f=-fitness, violation=0)`` for a colony ``(m, dim)``."""
+    def _rollout(self, solutions, worlds: Worlds | None, quality: bool) -> dict:
+        controls = self.controls(solutions)
+        if self.backend == "mjx":
+            return mjx_rollout(controls, self.spec, self.slope_deg, self.accuracy, worlds,
+                               quality)
+        return native_rollout_callback(controls, self.spec, self.slope_deg, self.accuracy,
+                                       worlds, quality)
+
+    def rollout(self, solutions: jax.Array, worlds: Worlds | None = None,
+                quality: bool = False) -> dict[str, jax.Array]:
+        """Per-world results ``(m, R)`` of gaits ``(m, dim)`` (R = 1 without ``worlds``):
+        ``fitness``, ``distance_m``, ``speed_mps``, ``fell``, ``drift_deg``, ``fall_time``, and
+        with ``quality`` the metrics of :mod:`eaco_jax.gait.quality` (per-joint ones
+        ``(m, R, nu)``). The fitness includes the problem's energy penalty, if any."""
+        if quality and not self.spec.has_motors:
+            raise ProblemError(f"robot {self.spec.name!r} has no motor datasheet: no energy or "
+                               "gait-quality metrics")
+        m = solutions.shape[0]
+        r = 1 if worlds is None else worlds.size
+        out = self._rollout(solutions, worlds, quality)
+        summary = self.summarize(out["trace"])
+        res = gait_fitness(summary, self.direction_deg)
+        res["fall_time"] = summary.fall_time
+        if quality:
+            res.update(self._quality(out["acc"], res["distance_m"], worlds, m * r))
+            res["fitness"] = self._penalised(res)
+        return {k: v.reshape((m, r) + v.shape[1:]) for k, v in res.items()}
+
+    def _quality(self, acc, distance, worlds: Worlds | None, nb: int) -> dict:
+        model = native_model(self.spec, float(self.slope_deg), self.accuracy)
+        mass = float(np.sum(model.body_mass))
+        nominal = jnp.asarray(self.spec.nominal_torque, jnp.float32)
+        if worlds is not None:
+            r = worlds.size
+            per_world = jnp.sum(jnp.asarray(model.body_mass) * worlds.mass_scale, -1)
+            mass = jnp.take(per_world, jnp.arange(nb) % r)
+            nominal = jnp.take(nominal * worlds.stall_scale, jnp.arange(nb) % r, axis=0)
+        dt = float(model.opt.timestep)
+        return ql.finalize(acc, distance, mass, dt, nominal)
+
+    def _penalised(self, res: dict) -> jax.Array:
+        fit = res["fitness"]
+        if self.penalty is None or self.penalty_weight == 0.0:
+            return fit
+        model = native_model(self.spec, float(self.slope_deg), self.accuracy)
+        if self.penalty == "cot":
+            cost = res["energy_j"] / (float(np.sum(model.body_mass)) * ql.G)
+        else:
+            cost = res["mean_power_w"]
+        return jnp.where(fit > 0, jnp.maximum(fit - self.penalty_weight * cost, 0.0), fit)
+
+    def metrics(self, solutions: jax.Array, key: jax.Array | None = None,
+                quality: bool = False) -> dict[str, jax.Array]:
+        """Fitness, distance_m, speed_mps, fell, drift_deg, fall_time of each gait ``(m, dim)``.
+
+        Nominal world without ``robust``; with it, ``fitness`` is the configured aggregate over
+        the R worlds drawn from ``key``, ``fell`` the fraction of worlds with a fall and the rest
+        means over worlds. ``quality`` adds the energy and gait-quality metrics (world means;
+        peaks: world maxima)."""
+        need_quality = quality or (self.penalty is not None and self.penalty_weight != 0.0)
+        worlds = self.worlds(key) if self.robust is not None else None
+        res = self.rollout(solutions, worlds, need_quality)
+        if worlds is None:
+            out = {k: v[:, 0] for k, v in res.items()}
+        else:
+            cfg = self.robust
+            out = {k: jnp.mean(v.astype(jnp.float32), axis=1) for k, v in res.items()}
+            out["fitness"] = aggregate(res["fitness"], cfg.aggregate, cfg.alpha)
+            for k in ("peak_power_w", "peak_speed_frac", "peak_torque_frac",
+                      "joint_peak_speed_frac", "joint_peak_torque_frac"):
+                if k in res:
+                    out[k] = jnp.max(res[k], axis=1)
+            if "min_foot_gap_m" in res:
+                out["min_foot_gap_m"] = jnp.min(res["min_foot_gap_m"], axis=1)
+            if "cost_of_transport" in res:
+                out["cost_of_transport"] = jnp.nanmean(res["cost_of_transport"], axis=1)
+        if not quality:
+            out = {k: v for k, v in out.items() if k in _FITNESS_KEYS}
+        return out
+
+    def evaluate(self, solutions: jax.Array, key: jax.Array | None = None) -> Evaluation:
+        """``Evaluation(f=-fitness, violation=0)`` for a colony ``(m, dim)``; ``key`` draws the
+        randomised worlds of a robust problem (see :meth:`worlds`)."""
         if solutions.ndim != 2 or solutions.shape[-1] != self.dim:
             raise ProblemError(
                 f"gait problem {self.name!r}: solutions must be (ants, {self.dim}), "
                 f"got {tuple(solutions.shape)}")
         x = jnp.clip(solutions.astype(self.dtype), self.lower, self.upper)
-        fit = self.metrics(x)["fitness"]
+        fit = self.metrics(x, key)["fitness"]
         fit = jnp.where(jnp.isfinite(fit), fit, 0.0).astype(self.dtype)
         return Evaluation(f=-fit, violation=jnp.zeros_like(fit))
 
@@ -99,10 +203,13 @@ class GaitProblem:
         self, params: Any, record: bool = True, backend: str | None = None,
         horizon: float | None = None,
     ) -> dict[str, Any]:
-        """Re-simulate one gait; metrics plus (if ``record``) time, joint angles, torso path.
+        """Re-simulate one gait in the nominal world; metrics plus (if ``record``) time, joint
+        angles, torso path.
 
         Returns numpy values: ``fitness``, ``speed_mps``, ``distance_m``, ``fell``,
-        ``drift_deg``, ``fall_time``; with ``record`` also ``time`` (T+1,), ``joints``
+        ``drift_deg``, ``fall_time``; ``quality`` (robots with a motor datasheet): the scalar
+        energy / gait-quality metrics, ``rms_torque_frac`` {joint: RMS torque / nominal} and
+        ``overheating`` (joints above 1); with ``record`` also ``time`` (T+1,), ``joints``
         {joint name: angles (T+1,)} for every actuated joint, ``torso_xyz`` (T+1, 3),
         ``torso_up`` (T+1, 3), ``controls`` (T, nu) (the commanded targets) and ``qpos``
         (T+1, nq) (the full configuration after each control step, for videos).
@@ -113,31 +220,38 @@ class GaitProblem:
         prob = self if backend is None and horizon is None else self.replace(
             backend=_resolve_backend(backend or self.backend),
             horizon=float(horizon if horizon is not None else self.horizon))
+        quality = prob.spec.has_motors
         x = jnp.clip(jnp.asarray(p)[None], prob.lower, prob.upper)
-        controls = jax.jit(prob.controls)(x)
+        controls = couple_controls(jax.jit(prob.controls)(x), prob.spec)
         if prob.backend == "mjx":
-            run = jax.jit(lambda c: mjx_trace(c, prob.spec, prob.slope_deg, prob.accuracy,
-                                              record=True))
-            trace, qpos = (np.asarray(a) for a in run(controls))
+            run = jax.jit(lambda c: mjx_rollout(c, prob.spec, prob.slope_deg, prob.accuracy,
+                                                quality=quality, record=True))
+            out = jax.tree.map(np.asarray, run(controls))
         else:
-            trace, qpos = native_trace(np.asarray(controls), prob.spec, prob.slope_deg,
-                                       prob.accuracy, record_qpos=True)
-        metrics = gait_fitness(prob.summarize(jnp.asarray(trace)), prob.direction_deg)
-        out: dict[str, Any] = {k: np.asarray(v)[0].item() for k, v in metrics.items()}
-        out["fell"] = bool(out["fell"])
-        out["fall_time"] = float(np.asarray(prob.summarize(jnp.asarray(trace)).fall_time)[0])
-        out["backend"] = prob.backend
-        out["horizon"] = prob.horizon
+            out = native_rollout(np.asarray(controls), prob.spec, prob.slope_deg, prob.accuracy,
+                                 quality=quality, record_qpos=True)
+        trace, qpos = np.asarray(out["trace"]), np.asarray(out["qpos"])
+        summary = prob.summarize(jnp.asarray(trace))
+        metrics = gait_fitness(summary, prob.direction_deg)
+        res: dict[str, Any] = {k: np.asarray(v)[0].item() for k, v in metrics.items()}
+        res["fell"] = bool(res["fell"])
+        res["fall_time"] = float(np.asarray(summary.fall_time)[0])
+        res["backend"] = prob.backend
+        res["horizon"] = prob.horizon
+        if quality:
+            q = prob._quality(jax.tree.map(jnp.asarray, out["acc"]), metrics["distance_m"],
+                              None, 1)
+            res["quality"] = quality_record(q, prob.spec.joint_names)
         if record:
             model = native_model(prob.spec, float(prob.slope_deg), prob.accuracy)
-            out["time"] = np.arange(prob.n_steps + 1) * prob.spec.control_dt
-            out["joints"] = {n: qpos[0, :, model.joint(n).qposadr[0]]
+            res["time"] = np.arange(prob.n_steps + 1) * prob.spec.control_dt
+            res["joints"] = {n: qpos[0, :, model.joint(n).qposadr[0]]
                              for n in prob.spec.joint_names}
-            out["torso_xyz"] = trace[0, :, :3]
-            out["torso_up"] = trace[0, :, 3:]
-            out["qpos"] = qpos[0]
-            out["controls"] = np.asarray(controls)[0]
-        return out
+            res["torso_xyz"] = trace[0, :, :3]
+            res["torso_up"] = trace[0, :, 3:]
+            res["qpos"] = qpos[0]
+            res["controls"] = np.asarray(controls)[0]
+        return res
 
     def as_constrained(self):
         """The same problem as a :class:`~eaco_jax.problems.constrained.ConstrainedProblem`
@@ -164,6 +278,19 @@ class GaitProblem:
                                             strict=True)}
 
 
+_FITNESS_KEYS = ("fitness", "distance_m", "speed_mps", "fell", "drift_deg", "fall_time")
+
+
+def quality_record(q: dict, joint_names) -> dict[str, Any]:
+    """JSON-ready quality metrics of one gait (``q``: :func:`~eaco_jax.gait.quality.finalize`
+    output with a leading axis of 1): scalars, RMS torque fraction per joint, overheating."""
+    rec: dict[str, Any] = {k: float(np.asarray(q[k]).reshape(-1)[0]) for k in QUALITY_SCALARS}
+    rms = np.asarray(q["rms_torque_frac"]).reshape(-1, len(joint_names))[0]
+    rec["rms_torque_frac"] = {n: float(v) for n, v in zip(joint_names, rms, strict=True)}
+    rec["overheating"] = ql.overheating(rms, joint_names)
+    return rec
+
+
 def _resolve_backend(backend: str) -> str:
     if backend not in BACKENDS:
         raise ProblemError(f"unknown backend {backend!r}; use one of {', '.join(BACKENDS)}")
@@ -188,9 +315,14 @@ def make_gait_problem(
     direction_deg: float = 0.0,
     slope_deg: float = 0.0,
     accuracy: str = "fast",
+    robust: RobustConfig | None = None,
+    penalty: str | None = None,
+    penalty_weight: float = 0.0,
 ) -> GaitProblem:
     """A :class:`GaitProblem` for a known robot ("nao", "ant") and backend ("auto", "mjx",
-    "native"); the horizon in seconds, the desired walking direction and floor slope in degrees."""
+    "native"); the horizon in seconds, the desired walking direction and floor slope in degrees;
+    ``robust`` for fitness over randomised worlds, ``penalty`` ("power" | "cot") and its weight
+    for an energy-aware fitness."""
     if isinstance(robot, RobotSpec):
         spec = robot
     else:
@@ -200,7 +332,7 @@ def make_gait_problem(
             raise ProblemError(str(err)) from None
     backend = _resolve_backend(backend)
     for label, v in (("horizon", horizon), ("direction_deg", direction_deg),
-                     ("slope_deg", slope_deg)):
+                     ("slope_deg", slope_deg), ("penalty_weight", penalty_weight)):
         if not isinstance(v, int | float) or not math.isfinite(v):
             raise ProblemError(f"{label} must be a finite number, got {v!r}")
     if horizon < spec.control_dt:
@@ -209,12 +341,23 @@ def make_gait_problem(
         raise ProblemError(f"slope_deg must be within (-45, 45) degrees, got {slope_deg}")
     if accuracy not in ("fast", "accurate"):
         raise ProblemError(f"accuracy must be 'fast' or 'accurate', got {accuracy!r}")
+    if robust is not None and not isinstance(robust, RobustConfig):
+        raise ProblemError(f"robust must be a RobustConfig, got {type(robust).__name__}")
+    if penalty not in PENALTIES:
+        raise ProblemError(f"penalty must be None, 'power' or 'cot', got {penalty!r}")
+    if penalty_weight < 0:
+        raise ProblemError(f"penalty_weight must be >= 0, got {penalty_weight}")
+    if (robust is not None or penalty is not None) and not spec.has_motors:
+        raise ProblemError(f"robot {spec.name!r} has no motor datasheet: robust and energy "
+                           "options need one (nao)")
     lo, hi = bounds(spec)
     name = f"gait-{spec.name}"
     return GaitProblem(
         lower=jnp.asarray(lo), upper=jnp.asarray(hi), spec=spec, backend=backend,
         horizon=float(horizon), direction_deg=float(direction_deg), slope_deg=float(slope_deg),
-        accuracy=accuracy, name=name)
+        accuracy=accuracy, name=name, robust=robust, penalty=penalty,
+        penalty_weight=float(penalty_weight))
 
 
-__all__ = ["BACKENDS", "GaitProblem", "known_robots", "make_gait_problem"]
+__all__ = ["BACKENDS", "GaitProblem", "RobustConfig", "known_robots", "make_gait_problem",
+           "quality_record"]

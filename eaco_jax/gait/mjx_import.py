@@ -1,0 +1,37 @@
+"""Import ``mujoco.mjx`` without its "Failed to import warp" lines.
+
+``mujoco.mjx`` tries the optional Warp backend at import and prints ``Failed to import warp: No
+module named 'warp'`` (and the same for ``mujoco_warp``) on every machine without it, which is
+every user of the JAX backend. :func:`quiet_mjx` drops exactly those lines (warp is simply not
+installed) and passes any other output through, e.g. a Warp install that fails to load.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+import sys
+from types import ModuleType
+
+_NOT_INSTALLED = re.compile(
+    r"^Failed to import (?:mujoco_)?warp: No module named '(?:warp|mujoco_warp)[\w.]*'$")
+
+
+def drop_warp_notes(text: str) -> str:
+    """``text`` without the lines saying that (mujoco_)warp is not installed."""
+    return "".join(line for line in text.splitlines(keepends=True)
+                   if not _NOT_INSTALLED.match(line.rstrip("\n")))
+
+
+def quiet_mjx() -> ModuleType:
+    """``mujoco.mjx``, imported with the not-installed Warp notes removed from stdout."""
+    if "mujoco.mjx" in sys.modules:
+        return sys.modules["mujoco.mjx"]
+    buf = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(buf):
+            from mujoco import mjx
+    finally:
+        sys.stdout.write(drop_warp_notes(buf.getvalue()))
+    return mjx

@@ -1,0 +1,166 @@
+"""Energy and gait-quality metrics of batched rollouts, accumulated while simulating.
+
+Both backends feed the same functions (``xp`` = ``numpy`` on the host for native MuJoCo,
+``jax.numpy`` inside MJX's scan), so the definitions exist once:
+
+* drive torque at a joint during a physics step: ``tau = clip(kp (clip(ctrl) - q), +-stall) -
+  damping * qdot`` with ``q`` before and ``qdot`` after the step (what implicitfast applies: the
+  servo force plus back-EMF and friction drag);
+* mechanical power = sum over joints of ``max(tau * qdot, 0)`` (positive work only: NAO's motors
+  do not recover energy); energy = its time integral; mean power = energy / time walked; peak
+  power = its largest physics-step value;
+* cost of transport = energy / (m g d), ``d`` the distance walked in the desired direction (NaN
+  when ``d`` < 1 cm);
+* peak joint speed as a fraction of the motor's no-load speed, peak |tau| as a fraction of its
+  stall torque, RMS tau per joint as a fraction of its nominal (continuous) torque: above 1 the
+  motor would overheat in sustained walking;
+* per control step, from the sole spheres: a foot is in contact when its lowest sphere is within
+  2 mm of the floor; foot slip = horizontal distance a foot's centre moves between two control
+  steps while in contact at both (summed over feet, metres); airborne fraction = share of control
+  steps with no foot in contact; minimum foot gap = smallest horizontal distance between a left
+  and a right sole-sphere centre minus 16 mm (each foot box reaches 8 mm beyond its spheres), so
+  a gap <= 0 means the feet would touch.
+
+Everything counts only until the fall (the steps of control step ``k`` count while torso samples
+``0..k`` are all upright), the same horizon the fitness uses.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+
+G = 9.81
+CONTACT_TOL = 0.002  # m above the sole-sphere radius
+FOOT_EDGE = 0.008  # m, each foot box's reach beyond its outer sphere centres (nao.xml)
+SOLES_PER_FOOT = 4
+
+
+class MotorParams(NamedTuple):
+    """Per actuator ``(..., nu)``: servo gain, stall torque (force clamp), joint damping,
+    no-load speed, nominal torque, control range."""
+
+    kp: object
+    stall: object
+    damping: object
+    no_load_speed: object
+    nominal: object
+    ctrl_lo: object
+    ctrl_hi: object
+
+
+def motor_params(fields: dict, spec, act_dofs, ctrlrange, stall_scale=1.0, speed_scale=1.0,
+                 xp=jnp) -> MotorParams:
+    """:class:`MotorParams` from (possibly per-world) model fields and the spec's datasheet."""
+    return MotorParams(
+        kp=xp.asarray(fields["actuator_gainprm"])[..., 0],
+        stall=xp.asarray(fields["actuator_forcerange"])[..., 1],
+        damping=xp.asarray(fields["dof_damping"])[..., np.asarray(act_dofs)],
+        no_load_speed=xp.asarray(spec.no_load_speed) * speed_scale,
+        nominal=xp.asarray(spec.nominal_torque) * stall_scale,
+        ctrl_lo=xp.asarray(ctrlrange[:, 0]),
+        ctrl_hi=xp.asarray(ctrlrange[:, 1]),
+    )
+
+
+def drive_torque(q, qdot, ctrl, mp: MotorParams, xp=jnp):
+    """The torque the drive applies to each joint in a physics step (see module docstring)."""
+    u = xp.clip(ctrl, mp.ctrl_lo, mp.ctrl_hi)
+    force = xp.clip(mp.kp * (u - q), -mp.stall, mp.stall)
+    return force - mp.damping * qdot
+
+
+def new_acc(batch: tuple[int, ...], nu: int, xp=jnp) -> dict:
+    """Empty accumulators for a batch of rollouts."""
+    z = lambda *s: xp.zeros(batch + s, xp.float32)  # noqa: E731
+    return {
+        "energy": z(), "peak_power": z(), "steps": z(), "ctrl_steps": z(), "air_steps": z(),
+        "slip": z(), "min_gap": xp.full(batch, np.inf, xp.float32),
+        "peak_speed": z(nu), "peak_torque": z(nu), "sum_tau2": z(nu),
+        "prev_xy": z(2, 2), "prev_contact": xp.zeros(batch + (2,), bool),
+    }
+
+
+def add_physics(acc: dict, q, qdot, ctrl, alive, mp: MotorParams, dt: float, xp=jnp) -> dict:
+    """Accumulate physics steps: ``q`` (before), ``qdot`` (after) ``(B, S, nu)``, ``ctrl``
+    ``(B, S, nu)`` or ``(B, 1, nu)``, ``alive`` ``(B, S)``; ``mp`` fields ``(B, 1, nu)``."""
+    tau = drive_torque(q, qdot, ctrl, mp, xp)
+    m = alive[..., None]
+    power = xp.sum(xp.maximum(tau * qdot, 0.0), axis=-1)
+    power = xp.where(alive, power, 0.0)
+    out = dict(acc)
+    out["energy"] = acc["energy"] + xp.sum(power, axis=-1) * dt
+    out["peak_power"] = xp.maximum(acc["peak_power"], xp.max(power, axis=-1))
+    out["steps"] = acc["steps"] + xp.sum(alive, axis=-1)
+    speed = xp.where(m, xp.abs(qdot) / mp.no_load_speed, 0.0)
+    out["peak_speed"] = xp.maximum(acc["peak_speed"], xp.max(speed, axis=-2))
+    torque = xp.where(m, xp.abs(tau) / mp.stall, 0.0)
+    out["peak_torque"] = xp.maximum(acc["peak_torque"], xp.max(torque, axis=-2))
+    out["sum_tau2"] = acc["sum_tau2"] + xp.sum(xp.where(m, tau * tau, 0.0), axis=-2)
+    return out
+
+
+def add_control(acc: dict, soles, alive, normal, radius: float, xp=jnp) -> dict:
+    """Accumulate control steps: sole-sphere centres ``soles`` ``(B, K, 8, 3)`` (left foot's four
+    first), ``alive`` ``(B, K)``, floor ``normal`` (3,) through the origin."""
+    height = soles @ xp.asarray(normal, xp.float32)  # (B, K, 8)
+    feet = height.reshape(height.shape[:-1] + (2, SOLES_PER_FOOT))
+    contact = xp.min(feet, axis=-1) < radius + CONTACT_TOL  # (B, K, 2)
+    xy = soles[..., :2].reshape(soles.shape[:-2] + (2, SOLES_PER_FOOT, 2))
+    centre = xp.mean(xy, axis=-2)  # (B, K, 2, 2)
+    prev = xp.concatenate([acc["prev_xy"][:, None], centre[:, :-1]], axis=1)
+    prev_c = xp.concatenate([acc["prev_contact"][:, None], contact[:, :-1]], axis=1)
+    step = xp.sqrt(xp.sum((centre - prev) ** 2, axis=-1))  # (B, K, 2)
+    slid = xp.where(contact & prev_c & alive[..., None], step, 0.0)
+    left, right = xy[..., 0, :, None, :], xy[..., 1, None, :, :]
+    pair = xp.sqrt(xp.sum((left - right) ** 2, axis=-1))  # (B, K, 4, 4)
+    gap = xp.min(pair.reshape(pair.shape[:-2] + (-1,)), axis=-1) - 2 * FOOT_EDGE
+    out = dict(acc)
+    out["ctrl_steps"] = acc["ctrl_steps"] + xp.sum(alive, axis=-1)
+    out["air_steps"] = acc["air_steps"] + xp.sum(alive & ~xp.any(contact, axis=-1), axis=-1)
+    out["slip"] = acc["slip"] + xp.sum(slid, axis=(-1, -2))
+    out["min_gap"] = xp.minimum(acc["min_gap"], xp.min(xp.where(alive, gap, np.inf), axis=-1))
+    out["prev_xy"] = centre[:, -1]
+    out["prev_contact"] = contact[:, -1]
+    return out
+
+
+def finalize(acc: dict, distance, mass, dt: float, nominal) -> dict:
+    """Metrics (batched like ``acc``) from accumulators, the distance walked in the desired
+    direction until the fall, the robot's mass and the actuators' nominal torque."""
+    steps = jnp.maximum(acc["steps"], 1.0)
+    seconds = steps * dt
+    energy = acc["energy"]
+    cot = jnp.where(distance > 0.01, energy / (mass * G * jnp.maximum(distance, 0.01)), jnp.nan)
+    rms = jnp.sqrt(acc["sum_tau2"] / steps[..., None]) / nominal
+    return {
+        "energy_j": energy,
+        "mean_power_w": energy / seconds,
+        "peak_power_w": acc["peak_power"],
+        "cost_of_transport": cot,
+        "peak_speed_frac": jnp.max(acc["peak_speed"], axis=-1),
+        "peak_torque_frac": jnp.max(acc["peak_torque"], axis=-1),
+        "joint_peak_speed_frac": acc["peak_speed"],
+        "joint_peak_torque_frac": acc["peak_torque"],
+        "rms_torque_frac": rms,
+        "foot_slip_m": acc["slip"],
+        "airborne_fraction": acc["air_steps"] / jnp.maximum(acc["ctrl_steps"], 1.0),
+        "min_foot_gap_m": acc["min_gap"],
+    }
+
+
+def overheating(rms_torque_frac, joint_names) -> list[str]:
+    """Joints whose RMS torque exceeds their motor's nominal (continuous) torque."""
+    rms = np.asarray(rms_torque_frac).reshape(-1)
+    return [n for n, v in zip(joint_names, rms, strict=True) if v > 1.0]
+
+
+def sole_sensor_names(spec) -> list[str]:
+    """Names of the ``framepos`` sensors :func:`eaco_jax.robots.load_model` adds per sole."""
+    return [f"sole_pos_{g}" for g in spec.foot_geoms]
+
+
+__all__ = ["MotorParams", "add_control", "add_physics", "drive_torque", "finalize",
+           "motor_params", "new_acc", "overheating"]
