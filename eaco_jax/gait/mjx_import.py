@@ -35,3 +35,19 @@ def quiet_mjx() -> ModuleType:
     finally:
         sys.stdout.write(drop_warp_notes(buf.getvalue()))
     return mjx
+
+
+def warp_usable() -> bool:
+    """Whether MJX's Warp implementation can run here: warp-lang imports and JAX's default
+    device is a CUDA GPU (MuJoCo Warp has no CPU path)."""
+    import jax
+
+    if jax.default_backend() != "gpu":
+        return False
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            import warp  # noqa: F401
+            from mujoco.mjx.third_party import mujoco_warp  # noqa: F401
+    except Exception:  # noqa: BLE001 - any failure to load means "not usable"
+        return False
+    return True

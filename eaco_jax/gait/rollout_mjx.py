@@ -50,15 +50,69 @@ from eaco_jax.robots import RobotSpec
 mjx = quiet_mjx()
 
 
+IMPLS = ("jax", "warp")
+
+
 @functools.lru_cache(maxsize=16)
-def mjx_model(spec: RobotSpec, slope_deg: float, accuracy: str) -> mjx.Model:
-    """The MJX model for ``(robot, slope, accuracy)``, cached (same MjModel as native).
+def mjx_model(spec: RobotSpec, slope_deg: float, accuracy: str, impl: str = "jax") -> mjx.Model:
+    """The MJX model for ``(robot, slope, accuracy)`` and implementation (``"jax"`` or
+    ``"warp"``: MuJoCo Warp through MJX's FFI, CUDA only), cached (same MjModel as native).
 
     Built with concrete arrays even when first called inside a jit trace: the cache outlives
     the trace, so a traced model would leak into the next one.
     """
     with jax.ensure_compile_time_eval():
-        return mjx.put_model(native_model(spec, slope_deg, accuracy))
+        model = native_model(spec, slope_deg, accuracy)
+        if impl == "jax":
+            return mjx.put_model(model)
+        return mjx.put_model(model, impl="warp")
+
+
+def contact_capacity(model) -> tuple[int, int]:
+    """Per-world bounds ``(contacts, constraint rows)`` for MuJoCo Warp's fixed buffers.
+
+    Contacts: every geom that can touch another (contype/conaffinity) against the floor plane,
+    at most 4 points each (box-plane; spheres and capsules make fewer), plus 4 per colliding
+    pair of robot geoms if self-collision is possible. Rows: each contact's pyramidal friction
+    rows (2 (condim - 1), at least 1), equality rows, limited joints and friction-loss dofs.
+    """
+    import numpy as np_
+
+    ctype, caff = model.geom_contype, model.geom_conaffinity
+    plane = model.geom_type == 0
+    collides = (ctype | caff) > 0
+    floor = np_.flatnonzero(plane & collides)
+    robot = np_.flatnonzero(~plane & collides)
+    pairs = 0
+    for f in floor:
+        pairs += int(np_.sum(((ctype[robot] & caff[f]) | (ctype[f] & caff[robot])) > 0))
+    self_pairs = 0
+    if len(robot) > 1:
+        cross = (ctype[robot][:, None] & caff[robot][None, :]) | (
+            ctype[robot][None, :] & caff[robot][:, None])
+        self_pairs = int(np_.sum(np_.triu(cross > 0, 1)))
+    contacts = 4 * (pairs + self_pairs) + model.npair * 4
+    condim = int(np_.max(model.geom_condim)) if model.ngeom else 3
+    rows = contacts * max(1, 2 * (condim - 1))
+    eq_rows = {0: 3, 1: 6, 2: 1, 3: 1}  # connect, weld, joint, tendon
+    rows += sum(eq_rows.get(int(t), 6) for t in model.eq_type)
+    rows += int(np_.sum(model.jnt_limited)) + int(np_.sum(model.dof_frictionloss > 0))
+    return int(contacts), int(rows)
+
+
+def _warp_overflow(nacon, nefc, naconmax: int, njmax: int) -> None:
+    """Host side of the overflow check: one line on stderr, never silent."""
+    import sys
+
+    nacon, nefc = int(np.max(nacon)), int(np.max(nefc))
+    if nacon > naconmax or nefc > njmax:
+        print(f"warning: MuJoCo Warp buffers overflowed (contacts {nacon} > {naconmax} or "
+              f"constraint rows {nefc} > {njmax} per world): contacts were dropped; raise "
+              "eaco_jax.gait.rollout_mjx.CAPACITY_MARGIN", file=sys.stderr)
+
+
+#: Warp buffers are sized at this multiple of :func:`contact_capacity`
+CAPACITY_MARGIN = 1.5
 
 
 def root_trace(qpos: jax.Array) -> jax.Array:
@@ -83,16 +137,21 @@ def mjx_rollout(
     worlds: Worlds | None = None,
     quality: bool = False,
     record: bool = False,
+    impl: str = "jax",
 ) -> dict[str, jax.Array]:
     """Roll out the ants' targets ``controls`` ``(A, T, nu)`` on MJX (in R worlds if given).
 
     Returns ``trace`` ``(B, T + 1, 6)``, ``qpos`` ``(B, T + 1, nq)`` with ``record`` and the
     quality accumulators ``acc`` with ``quality``; ``B = A * R`` (R = 1 without worlds).
+    ``impl="warp"`` runs MuJoCo Warp (CUDA) with contact and constraint buffers sized from the
+    model and the batch (:func:`contact_capacity`); an overflow is reported on stderr.
     Traceable: call it inside jit / scan.
     """
+    if impl not in IMPLS:
+        raise ValueError(f"impl must be one of {IMPLS}, got {impl!r}")
     model = native_model(spec, float(slope_deg), accuracy)
     k = substeps(spec, model)
-    mm = mjx_model(spec, float(slope_deg), accuracy)
+    mm = mjx_model(spec, float(slope_deg), accuracy, impl)
     a, n_steps, nu = controls.shape
     controls = controls.astype(jnp.float32)
     qpos0 = jnp.asarray(initial_state(spec, model, slope_deg)[1 : 1 + model.nq], jnp.float32)
@@ -101,7 +160,21 @@ def mjx_rollout(
     nb = a * r
     world_of = jnp.arange(nb) % r
     dofs = np.asarray(actuated_dofs(model, spec))
-    if worlds is None:
+    warp = impl == "warp"
+    if warp:
+        per_world, rows = contact_capacity(model)
+        naconmax = int(CAPACITY_MARGIN * per_world * nb)
+        njmax = int(CAPACITY_MARGIN * rows)
+        dw = mjx.make_data(model, impl="warp", naconmax=naconmax, njmax=njmax)
+    if worlds is None and warp:
+        step = jax.vmap(lambda d: mjx.step(mm, d))
+        d0 = dw.replace(ctrl=ctrl0)
+        data = jax.vmap(lambda q: mjx.forward(mm, d0.replace(qpos=q)))(
+            jnp.broadcast_to(qpos0, (nb,) + qpos0.shape))
+        motor = nominal_motor(spec, model) if quality else None
+        mp = None if motor is None else ql.MotorParams(
+            *(jnp.broadcast_to(jnp.asarray(x, jnp.float32), (nb, nu))[:, None] for x in motor))
+    elif worlds is None:
         step = jax.vmap(lambda d: mjx.step(mm, d))
         data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
         data = jax.tree.map(lambda x: jnp.broadcast_to(x, (nb,) + x.shape), data)
@@ -116,7 +189,7 @@ def mjx_rollout(
         qadr = np.array([model.joint(n).qposadr[0] for n in spec.joint_names])
         qinit = initial_qpos(qpos0, worlds, qadr, np.asarray(spec.joint_lower, np.float32),
                              np.asarray(spec.joint_upper, np.float32))
-        d0 = mjx.make_data(mm).replace(ctrl=ctrl0)
+        d0 = (dw if warp else mjx.make_data(mm)).replace(ctrl=ctrl0)
         data = jax.vmap(lambda m_, q: mjx.forward(m_, d0.replace(qpos=q)), in_axes=(axes, 0))(
             mmb, jnp.take(qinit, world_of, axis=0))
         mp = None
@@ -141,7 +214,7 @@ def mjx_rollout(
         return world_ctrl_at(controls, t, worlds, spec).reshape(nb, nu)
 
     def control_step(carry, t):
-        d, acc, alive = carry
+        d, acc, alive, peak = carry
         u = targets(t)
         d = d.replace(ctrl=u)
         if worlds is not None:
@@ -167,13 +240,18 @@ def mjx_rollout(
         row = root_trace(d.qpos)
         alive = alive & ~is_down(row[:, :3], row[:, 3:], spec.fall_height, spec.fall_tilt_deg,
                                  slope_deg)
-        return (d, acc, alive), (row, d.qpos if record else None)
+        if warp:  # buffer use: total contacts (all worlds) and rows per world
+            peak = jnp.maximum(peak, jnp.stack([jnp.max(d._impl.nacon), jnp.max(d._impl.nefc)]))
+        return (d, acc, alive, peak), (row, d.qpos if record else None)
 
     start = root_trace(data.qpos)
     alive0 = ~is_down(start[:, :3], start[:, 3:], spec.fall_height, spec.fall_tilt_deg, slope_deg)
     acc0 = ql.new_acc((nb,), nu) if quality else None
-    (_, acc, _), (trace, qpos) = jax.lax.scan(control_step, (data, acc0, alive0),
-                                              jnp.arange(n_steps))
+    peak0 = jnp.zeros((2,), jnp.int32)
+    (_, acc, _, peak), (trace, qpos) = jax.lax.scan(
+        control_step, (data, acc0, alive0, peak0), jnp.arange(n_steps))
+    if warp:
+        jax.debug.callback(_warp_overflow, peak[0], peak[1], naconmax, njmax)
     out = {"trace": jnp.swapaxes(jnp.concatenate([start[None], trace], 0), 0, 1)}
     if record:
         out["qpos"] = jnp.swapaxes(jnp.concatenate([data.qpos[None], qpos], 0), 0, 1)

@@ -64,6 +64,7 @@ class GaitProblem:
     robust: RobustConfig | None = struct.field(pytree_node=False, default=None)
     penalty: str | None = struct.field(pytree_node=False, default=None)
     penalty_weight: float = struct.field(pytree_node=False, default=0.0)
+    impl: str = struct.field(pytree_node=False, default="jax")  # MJX implementation: jax|warp
 
     kind = "continuous"
     differentiable = False  # a simulation: no gradient repair / refinement steps
@@ -111,7 +112,7 @@ class GaitProblem:
         controls = self.controls(solutions)
         if self.backend == "mjx":
             return mjx_rollout(controls, self.spec, self.slope_deg, self.accuracy, worlds,
-                               quality)
+                               quality, impl=self.impl)
         return native_rollout_callback(controls, self.spec, self.slope_deg, self.accuracy,
                                        worlds, quality)
 
@@ -225,7 +226,7 @@ class GaitProblem:
         controls = couple_controls(jax.jit(prob.controls)(x), prob.spec)
         if prob.backend == "mjx":
             run = jax.jit(lambda c: mjx_rollout(c, prob.spec, prob.slope_deg, prob.accuracy,
-                                                quality=quality, record=True))
+                                                quality=quality, record=True, impl=prob.impl))
             out = jax.tree.map(np.asarray, run(controls))
         else:
             out = native_rollout(np.asarray(controls), prob.spec, prob.slope_deg, prob.accuracy,
@@ -318,11 +319,13 @@ def make_gait_problem(
     robust: RobustConfig | None = None,
     penalty: str | None = None,
     penalty_weight: float = 0.0,
+    impl: str = "auto",
 ) -> GaitProblem:
     """A :class:`GaitProblem` for a known robot ("nao", "ant") and backend ("auto", "mjx",
     "native"); the horizon in seconds, the desired walking direction and floor slope in degrees;
     ``robust`` for fitness over randomised worlds, ``penalty`` ("power" | "cot") and its weight
-    for an energy-aware fitness."""
+    for an energy-aware fitness; ``impl`` the MJX implementation ("jax", "warp" = MuJoCo Warp on
+    CUDA, "auto" = warp where it can run)."""
     if isinstance(robot, RobotSpec):
         spec = robot
     else:
@@ -350,13 +353,33 @@ def make_gait_problem(
     if (robust is not None or penalty is not None) and not spec.has_motors:
         raise ProblemError(f"robot {spec.name!r} has no motor datasheet: robust and energy "
                            "options need one (nao)")
+    impl = _resolve_impl(impl, backend)
     lo, hi = bounds(spec)
     name = f"gait-{spec.name}"
     return GaitProblem(
         lower=jnp.asarray(lo), upper=jnp.asarray(hi), spec=spec, backend=backend,
         horizon=float(horizon), direction_deg=float(direction_deg), slope_deg=float(slope_deg),
         accuracy=accuracy, name=name, robust=robust, penalty=penalty,
-        penalty_weight=float(penalty_weight))
+        penalty_weight=float(penalty_weight), impl=impl)
+
+
+IMPLS = ("auto", "jax", "warp")
+
+
+def _resolve_impl(impl: str, backend: str) -> str:
+    """``auto`` -> warp on a CUDA device where warp-lang imports, else jax."""
+    from eaco_jax.gait.mjx_import import warp_usable
+
+    if impl not in IMPLS:
+        raise ProblemError(f"impl must be one of {', '.join(IMPLS)}, got {impl!r}")
+    if backend != "mjx":
+        return "jax"
+    if impl == "auto":
+        return "warp" if warp_usable() else "jax"
+    if impl == "warp" and not warp_usable():
+        raise ProblemError("impl 'warp' needs a CUDA GPU and warp-lang "
+                           "(pip install 'eaco-jax[gpu]'); use impl='jax'")
+    return impl
 
 
 __all__ = ["BACKENDS", "GaitProblem", "RobustConfig", "known_robots", "make_gait_problem",
