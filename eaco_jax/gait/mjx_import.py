@@ -34,6 +34,8 @@ def quiet_mjx() -> ModuleType:
             from mujoco import mjx
     finally:
         sys.stdout.write(drop_warp_notes(buf.getvalue()))
+    if "warp" in sys.modules:  # no per-kernel "Module ... load" lines for our users
+        sys.modules["warp"].config.quiet = True
     return mjx
 
 
@@ -46,7 +48,9 @@ def warp_usable() -> bool:
         return False
     try:
         with contextlib.redirect_stdout(io.StringIO()):
-            import warp  # noqa: F401
+            import warp
+
+            warp.config.quiet = True  # no per-kernel "Module ... load" lines for our users
             from mujoco.mjx.third_party import mujoco_warp  # noqa: F401
     except Exception:  # noqa: BLE001 - any failure to load means "not usable"
         return False
