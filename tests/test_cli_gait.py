@@ -166,3 +166,26 @@ def test_gait_init_warm_start(native_run, tmp_path):
     start = np.asarray(rec["vector"])
     assert np.all(np.abs(np.asarray(warm["vector"]) - start) <= 0.15 * (UPPER - LOWER) + 1e-6)
     assert warm["init_fitness"] == pytest.approx(rec["fitness"], abs=1e-6)
+
+
+def test_gait_eval_trials_and_export(native_run, tmp_path):
+    """--trials replays under fresh randomised worlds; --export writes a run that replays on
+    plain mujoco (no eaco code) to the same final state."""
+    import mujoco
+
+    _, out, _ = native_run
+    npz = tmp_path / "run.npz"
+    ev = last_json(invoke(["gait-eval", str(out / "best_gait.json"), "--backend", "native",
+                           "--trials", "3", "--export", str(npz), "--json"]).stdout)
+    t = ev["trials"]
+    assert t["n"] == 3 and 0 <= t["falls"] <= 3 and t["backend"] == "native"
+    assert np.isfinite(t["speed_mps_mean"]) and t["speed_mps_ci95"] >= 0
+    run = np.load(npz)
+    model = mujoco.MjModel.from_xml_string(str(run["model_xml"]))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = run["qpos"][0], run["qvel"][0]
+    for u in run["ctrl"]:
+        data.ctrl[:] = u
+        mujoco.mj_step(model, data, nstep=int(run["substeps"]))
+    np.testing.assert_allclose(data.qpos, run["qpos"][-1], atol=1e-9)
+    assert "robust must be an integer >= 0" in one_line_error(["gait", "--robust", "-1"])

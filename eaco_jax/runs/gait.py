@@ -40,6 +40,18 @@ from eaco_jax.runs.base import Built, RunKind, check_choices, check_positive, se
 ensure_headless_gl()  # before anything imports mujoco: its GL backend is fixed at import
 
 BACKENDS = ("auto", "mjx", "native")
+IMPLS = ("auto", "jax", "warp")
+AGGREGATES = ("cvar", "worst", "mean")
+
+
+def _check_robust(robust: int, trials: int, penalty: str | None) -> None:
+    from eaco_jax.errors import ConfigError
+
+    for name, value in (("robust", robust), ("trials", trials)):
+        if isinstance(value, bool) or int(value) != value or value < 0:
+            raise ConfigError(f"{name} must be an integer >= 0, got {value!r}")
+    if penalty not in (None, "power", "cot"):
+        raise ConfigError(f"penalty={penalty!r} is not one of power, cot")
 EVAL_HORIZON = 20.0
 INIT_RADIUS = 0.15
 """``init`` search box: +/- this fraction of each parameter's range around the stored gait."""
@@ -63,10 +75,20 @@ class GaitSettings:
     video: bool = setting(True, "render best_gait.mp4 offscreen")
     init: str | None = setting(None, "warm start: search +/-15% of each range around this "
                                "stored gait (JSON)")
+    impl: str = setting("auto", "MJX implementation: warp (MuJoCo Warp, CUDA), jax, or auto",
+                        choices=IMPLS)
+    robust: int = setting(0, "randomised worlds per ant (friction, masses, motors, latency, "
+                          "noise, pushes); 0 = the nominal world only")
+    aggregate: str = setting("cvar", "how the worlds' fitness combine", choices=AGGREGATES)
+    penalty: str | None = setting(None, "energy-aware fitness: 'power' or 'cot'")
+    penalty_weight: float = setting(0.0, "weight of the energy penalty")
+    trials: int = setting(0, "after the search: replay the best gait in this many fresh "
+                          "randomised worlds (seeds disjoint from the search)")
 
     def __post_init__(self) -> None:
         check_choices(self)
         check_positive(self, "ants", "iterations")
+        _check_robust(self.robust, self.trials, self.penalty)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,9 +100,17 @@ class GaitEvalSettings:
     horizon: float | None = setting(None, "seconds to simulate (default: the file's, else 20)")
     out: str | None = setting(None, "folder for gait_eval.json, joint_angles.png and the video")
     video: bool = setting(True, "render best_gait.mp4 into --out")
+    impl: str = setting("auto", "MJX implementation: warp (MuJoCo Warp, CUDA), jax, or auto",
+                        choices=IMPLS)
+    trials: int = setting(0, "replay under this many randomised worlds (seeds disjoint from "
+                          "optimisation); adds 'trials' to the record")
+    accurate: bool = setting(False, "trials with MuJoCo's default solver settings")
+    export: str | None = setting(None, "write the simulated run to this .npz (ctrl, qpos, qvel, "
+                                 "the model's MJCF): it replays on plain mujoco")
 
     def __post_init__(self) -> None:
         check_choices(self)
+        _check_robust(0, self.trials, None)
 
 
 # --------------------------------------------------------------------------- parameter files
@@ -193,11 +223,15 @@ def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------- gait
-def _problem(robot: str, backend: str, horizon: float, direction: float, slope: float) -> Any:
-    from eaco_jax.problems.gait import make_gait_problem
+def _problem(robot: str, backend: str, horizon: float, direction: float, slope: float,
+             impl: str = "auto", robust: int = 0, aggregate: str = "cvar",
+             penalty: str | None = None, penalty_weight: float = 0.0) -> Any:
+    from eaco_jax.problems.gait import RobustConfig, make_gait_problem
 
+    cfg = RobustConfig(R=int(robust), aggregate=aggregate) if robust else None
     return make_gait_problem(robot, backend=backend, horizon=float(horizon),
-                             direction_deg=float(direction), slope_deg=float(slope))
+                             direction_deg=float(direction), slope_deg=float(slope), impl=impl,
+                             robust=cfg, penalty=penalty, penalty_weight=float(penalty_weight))
 
 
 def build(s: GaitSettings) -> Built:
@@ -206,7 +240,8 @@ def build(s: GaitSettings) -> Built:
 
     from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
-    problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope)
+    problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope, s.impl, s.robust,
+                       s.aggregate, s.penalty, s.penalty_weight)
     search = problem
     extra: dict[str, Any] = {"full_problem": problem}
     if s.init is not None:
@@ -261,6 +296,12 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     }
     if "init_vec" in built.extra:
         record["init_fitness"] = problem.simulate(built.extra["init_vec"], record=False)["fitness"]
+    if s.robust:
+        record["robust"] = {"R": int(s.robust), "aggregate": s.aggregate}
+    if s.trials:
+        from eaco_jax.gait.validate import evaluate_trials
+
+        record["trials"] = evaluate_trials(problem, best, n=int(s.trials))
     if s.out is not None:
         from eaco_jax import plots
         from eaco_jax.outputs import write_history_csv, write_json
@@ -290,7 +331,7 @@ def build_eval(s: GaitEvalSettings) -> Built:
         horizon = float(_stored(data, "horizon", "verify_horizon") or EVAL_HORIZON)
     direction = float(_stored(data, "direction", "direction_deg") or 0.0)
     slope = float(_stored(data, "slope", "slope_deg") or 0.0)
-    problem = _problem(str(robot), s.backend, float(horizon), direction, slope)
+    problem = _problem(str(robot), s.backend, float(horizon), direction, slope, s.impl)
     vec = params_vector(data, problem, str(s.params_file))
     return Built(problem, None, None, {}, extra={"vector": vec})
 
@@ -311,6 +352,14 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
         "seconds": time.perf_counter() - t0,
         "out": s.out,
     }
+    if s.trials:
+        from eaco_jax.gait.validate import evaluate_trials
+
+        record["trials"] = evaluate_trials(problem, vec, n=int(s.trials), accurate=s.accurate)
+    if s.export is not None:
+        from eaco_jax.gait.validate import export_run
+
+        record["export"] = str(export_run(problem, vec, s.export))
     if s.out is not None:
         from eaco_jax.outputs import write_json
 
