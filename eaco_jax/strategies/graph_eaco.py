@@ -69,7 +69,7 @@ from eaco_jax.strategies.base import State, Strategy, base_fields, record_best
 
 Array = jax.Array
 
-LOCAL_SEARCHES = ("2opt", "none")
+LOCAL_SEARCHES = ("2opt", "2opt-dlb", "2opt+oropt", "none")
 CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
 
@@ -150,6 +150,8 @@ class GraphEACO(Strategy):
     mutation: str = "auto"
     #: cap on 2-opt improving moves per tour per iteration (None: run to a local optimum)
     max_ls_moves: int | None = None
+    #: local search on the ls_best_k shortest tours of each iteration only (None: all ants)
+    ls_best_k: int | None = None
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
     problem_kind: ClassVar[str] = "graph"
@@ -161,6 +163,8 @@ class GraphEACO(Strategy):
                 object.__setattr__(self, name, on if with_ls else "none")
         if self.num_ants < 1:
             raise ValueError(f"num_ants must be >= 1, got {self.num_ants}")
+        if self.ls_best_k is not None and self.ls_best_k < 1:
+            raise ValueError(f"ls_best_k must be >= 1 or None, got {self.ls_best_k}")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
@@ -259,7 +263,10 @@ class GraphEACO(Strategy):
     def _ask(self, key: Array, state: GraphState) -> tuple[Array, GraphState]:
         p = state.params
         m, n = self.num_ants, state.tau.shape[0]
-        k_start, k_build, k_cx, k_mut = jax.random.split(key, 4)
+        # the ACOTSP-style searches draw a random city order: a fifth key (the other kinds keep
+        # the four-way split, so their tours are unchanged)
+        dlb = self.local_search in ("2opt-dlb", "2opt+oropt")
+        k_start, k_build, k_cx, k_mut, *k_ls = jax.random.split(key, 5 if dlb else 4)
 
         x = chaos.logistic_step(state.chaos)
         factor = jnp.where(p.use_chaos > 0.5, chaos.perturbation(x, p.chaos_strength), 1.0)
@@ -289,7 +296,7 @@ class GraphEACO(Strategy):
         l_pn = tour_lengths(state.dist, pher_tour)[0]
 
         tours, pc, pm = self._genetic(k_cx, k_mut, tours, state)
-        tours = self._local_search(tours, state)
+        tours = self._local_search(tours, state, k_ls[0] if k_ls else None)
         return tours, state.replace(
             chaos=x,
             pheromone_tour_length=l_pn,
@@ -337,12 +344,26 @@ class GraphEACO(Strategy):
         pm = rate_m.mean() if self.mutation != "none" else _f(0.0)
         return tours, pc, pm
 
-    def _local_search(self, tours: Array, state: GraphState) -> Array:
+    def _local_search(self, tours: Array, state: GraphState, key: Array | None = None) -> Array:
+        """2-opt ("2opt": batched best improvement; "2opt-dlb": ACOTSP's first improvement with
+        don't-look bits; "2opt+oropt": the latter plus Or-opt), on every ant or on the
+        ``ls_best_k`` shortest tours only."""
         if self.local_search == "none":
             return tours
         from eaco_jax.ops import local_search
 
-        return local_search.two_opt(tours, state.dist, state.neighbors, self.max_ls_moves)
+        if self.local_search == "2opt":
+            def improve(t):
+                return local_search.two_opt(t, state.dist, state.neighbors, self.max_ls_moves)
+        else:
+            def improve(t):
+                return local_search.dlb_local_search(
+                    key, t, state.dist, state.neighbors, self.max_ls_moves,
+                    or_opt=self.local_search == "2opt+oropt")
+        if self.ls_best_k is None or self.ls_best_k >= tours.shape[0]:
+            return improve(tours)
+        return local_search.best_k(tours, tour_lengths(state.dist, tours), self.ls_best_k,
+                                   improve)
 
     # ------------------------------------------------------------------ tell
     def _tell(self, state: GraphState, solutions: Array, fitness: Array) -> GraphState:
