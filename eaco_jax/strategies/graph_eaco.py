@@ -154,6 +154,9 @@ class GraphEACO(Strategy):
     ls_best_k: int | None = None
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
+    #: how construction's whole-row fallback runs ("auto", "lazy", "dense", "backup"; see
+    #: construction.construct_tours): a cost choice only, every plan builds the same tours
+    construction_fallback: str = "auto"
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -288,7 +291,8 @@ class GraphEACO(Strategy):
         cands = state.neighbors if self.candidate_lists else None
 
         def build(chaos_factor):
-            return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands)
+            return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands,
+                                   self.construction_fallback)
 
         # without chaos the factor is all ones: skip its per-step gathers and products
         built = jax.lax.cond(p.use_chaos > 0.5, lambda: build(factor), lambda: build(None))
