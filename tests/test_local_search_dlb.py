@@ -145,12 +145,13 @@ def eil51():
 
 
 @pytest.mark.parametrize("or_opt", [False, True])
-@pytest.mark.parametrize("full_check", [False, True])
-def test_matches_numpy_reference_move_for_move(eil51, or_opt, full_check):
+@pytest.mark.parametrize("full_check,block", [(False, 8), (True, 8), (False, 1), (True, 3)])
+def test_matches_numpy_reference_move_for_move(eil51, or_opt, full_check, block):
     d, cand = np.asarray(eil51.dist, np.float64), np.asarray(eil51.neighbors)
     tours, orders = _tours(51, 3, 0), _tours(51, 3, 1)
     out, moves = dlb_local_search(None, tours, eil51.dist, eil51.neighbors, or_opt=or_opt,
-                                  full_check=full_check, return_moves=True, order=orders)
+                                  full_check=full_check, return_moves=True, order=orders,
+                                  block=block)
     for t, o, got, mv in zip(tours, orders, np.asarray(out), np.asarray(moves), strict=True):
         want, want_moves = reference(t, o, d, cand, or_opt, full_check)
         np.testing.assert_array_equal(got, want)
