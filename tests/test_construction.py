@@ -199,3 +199,49 @@ def test_tour_lengths_and_weights_underflow_safe():
     w = choice_weights(tau * 1e-30, heuristic_log_eta(d * 1e4), 1.0, 12.0)
     assert np.all(np.isfinite(w)) and np.allclose(np.max(w, axis=1), 1.0)
     assert np.all(np.diag(np.asarray(w)) == 0)
+
+
+@pytest.mark.parametrize("chaos_on", [False, True])
+@pytest.mark.parametrize("backup", [64, 4])
+def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, monkeypatch):
+    """The whole-row fallback's plans (lazy branch, dense, backup list + compaction) differ in
+    cost only: same tours, bit for bit, with many ants falling back on short candidate lists,
+    two stacked weight matrices, the q0 mix and (where the backup list is off) chaos. A
+    backup list of 4 leaves many ants to the compacted whole-row search."""
+    from eaco_jax.ops import construction
+
+    monkeypatch.setattr(construction, "BACKUP", backup)
+    n, m = 60, 50
+    d, tau, _ = _instance(n=n, seed=11)
+    nbr = np.argsort(np.where(np.eye(n), np.inf, np.asarray(d)), axis=1)[:, :3]
+    le = heuristic_log_eta(d)
+    stacked = jnp.concatenate([choice_weights(tau, le, 1.0, 2.0),
+                               choice_weights(tau, le, 1.0, 0.0)], axis=0)
+    rng = np.random.default_rng(3)
+    starts = jnp.asarray(rng.integers(0, n, m), jnp.int32)
+    offset = jnp.asarray(np.where(np.arange(m) % 7 == 0, n, 0), jnp.int32)
+    q0 = jnp.asarray(np.where(np.arange(m) % 3 == 0, 0.9, 0.2), jnp.float32)
+    factor = jnp.asarray(rng.uniform(0.8, 1.2, (m, n)), jnp.float32) if chaos_on else None
+    built = {plan: np.asarray(construct_tours(jax.random.key(4), stacked, starts, q0, offset,
+                                              factor, jnp.asarray(nbr, jnp.int32), plan))
+             for plan in ("lazy", "dense", "backup")}
+    assert _is_perm(built["lazy"])
+    np.testing.assert_array_equal(built["dense"], built["lazy"])
+    np.testing.assert_array_equal(built["backup"], built["lazy"])
+    with pytest.raises(ValueError, match="fallback"):
+        construct_tours(jax.random.key(4), stacked, starts, candidates=jnp.asarray(nbr),
+                        fallback="sometimes")
+
+
+def test_backup_list_is_the_whole_row_order():
+    from eaco_jax.ops.construction import _backup_lists, _packed_argmax
+
+    d, tau, _ = _instance(n=20, seed=2)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    nodes, positive = _backup_lists(w, 6)
+    alive = np.ones(20, bool)
+    for r in range(20):
+        mask = alive.copy()
+        mask[np.asarray(nodes[r, :3])] = False  # the three heaviest are tabu
+        best, ok = _packed_argmax(jnp.where(jnp.asarray(mask), w[r], 0.0))
+        assert bool(ok) and bool(positive[r, 3]) and int(best) == int(nodes[r, 3])

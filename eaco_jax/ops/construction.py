@@ -29,6 +29,8 @@ MATMUL_CUMSUM = 64
 #: on CPU, steps where at most this many ants have all candidates tabu search only those
 #: ants' whole rows (more: every ant's)
 FALLBACK_ANTS = 4
+#: on accelerators, length of each row's backup list (its heaviest nodes) for the fallback
+BACKUP = 64
 
 
 def choice_weights(tau: Array, log_eta: Array, alpha: Array, beta: Array) -> Array:
@@ -76,7 +78,9 @@ def _sample(w: Array, u: Array, q0: Array) -> tuple[Array, Array]:
     k = w.shape[-1]
     if k <= MATMUL_CUMSUM:
         greedy, ok = _packed_argmax(w)
-        cum = w @ jnp.triu(jnp.ones((k, k), w.dtype))
+        # HIGHEST: float32 prefix sums on GPUs too (the default may round through TF32)
+        cum = jnp.matmul(w, jnp.triu(jnp.ones((k, k), w.dtype)),
+                         precision=jax.lax.Precision.HIGHEST)
     else:  # whole rows: exact argmax, O(k) prefix sums
         greedy, ok = jnp.argmax(w, axis=1).astype(jnp.int32), jnp.any(w > 0, axis=1)
         cum = jnp.cumsum(w, axis=1)
@@ -89,8 +93,44 @@ def _sample(w: Array, u: Array, q0: Array) -> tuple[Array, Array]:
     return jnp.where(u < q0, greedy, sampled), ok
 
 
+def fallback_plan(m: int, n: int, backend: str | None = None) -> tuple[bool, int, int]:
+    """(lazy, backup, fallback_ants) of the automatic plan for the whole-row fallback.
+
+    CPU: "lazy" (a branch on steps where some ant needs the fallback, at most FALLBACK_ANTS
+    compacted ants; measured best on XLA:CPU). Accelerators: "dense", every ant's whole row on
+    every step, as measured so far on an H100; that is O(m n) memory traffic per step, the
+    roofline of large colonies, and "backup" (a list of each row's heaviest nodes, exact, then
+    compacted whole rows for the few ants left) removes it: to be switched here once
+    ``experiments/tsp_scale.py --fallbacks dense backup lazy`` has measured it on a GPU.
+    """
+    backend = jax.default_backend() if backend is None else backend
+    if backend == "cpu":
+        return True, 0, FALLBACK_ANTS
+    return False, 0, m
+
+
+def _row_keys(rows: Array) -> Array:
+    """The int32 packed keys of :func:`_packed_argmax` for whole rows (weight bits high,
+    column low): their order is the order in which the whole-row fallback prefers nodes."""
+    width = rows.shape[-1]
+    id_bits = max(1, (width - 1).bit_length())
+    bits = jax.lax.bitcast_convert_type(rows, jnp.int32)
+    return (bits & ~((1 << id_bits) - 1)) | jnp.arange(width, dtype=jnp.int32)
+
+
+def _backup_lists(weights: Array, size: int) -> tuple[Array, Array]:
+    """Each row's ``size`` nodes of largest packed key (descending) and whether their weight
+    bits are non-zero. The whole-row fallback picks the allowed node of largest key; when one
+    of these nodes is allowed, the first allowed one IS that node (exact, same ties), so only
+    ants with all of them tabu need the whole row. One top_k over (R, n) per construction."""
+    keys, _ = jax.lax.top_k(_row_keys(weights), size)
+    id_bits = max(1, (weights.shape[1] - 1).bit_length())
+    return keys & ((1 << id_bits) - 1), (keys >> id_bits) > 0
+
+
 def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
-          candidates: Array | None):
+          candidates: Array | None, lazy: bool = True, backup: int = 0,
+          fallback_ants: int = FALLBACK_ANTS):
     n = weights.shape[1]
     m = row_offset.shape[0]
     ant_base = (jnp.arange(m, dtype=jnp.int32) * n)[:, None]
@@ -98,7 +138,7 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
     def best_allowed(ants: Array, current: Array, alive: Array) -> Array:
         """For ants ``ants`` (at ``current``, tabu masks ``alive``): the allowed node of
         largest weight, the first allowed one if all their weights are 0."""
-        w = weights[row_offset[ants] + current] * alive
+        w = jnp.where(alive, weights[row_offset[ants] + current], 0.0)
         w = w if factor is None else w * factor[ants]
         best, ok = _packed_argmax(w)
         return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
@@ -107,48 +147,62 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
     if candidates is None:
         def step(carry, u):
             current, alive = carry
-            w = weights[row_offset + current] * alive  # (m, n), tabu nodes 0
+            w = jnp.where(alive, weights[row_offset + current], 0.0)  # (m, n), tabu nodes 0
             nxt, ok = _sample(w if factor is None else w * factor, u, q0)
             nxt = jnp.where(ok, nxt, jnp.argmax(alive, axis=1).astype(jnp.int32))
-            return (nxt, alive.at[every, nxt].set(0.0, unique_indices=True)), nxt
+            return (nxt, alive.at[every, nxt].set(False, unique_indices=True)), nxt
 
         return step
 
     copies = weights.shape[0] // n
     cands = jnp.concatenate([candidates] * copies, axis=0)
-    cand_w = jnp.take_along_axis(weights, cands, axis=1)  # gathered once per construction
-    # On CPU the whole-row fallback runs only on steps where some ant needs it, and for only
-    # those ants when there are few; on accelerators a per-step branch costs more than it
-    # saves, so the whole-row search runs for every ant on every step there.
-    lazy = jax.default_backend() == "cpu"
+    cand_w = jnp.take_along_axis(weights, cands, axis=1)  # choice info, once per construction
+    # the backup list orders nodes by weight alone: not with a per-ant chaos factor
+    backup = backup if factor is None else 0
+    if backup:
+        bk_node, bk_pos = _backup_lists(weights, backup)
+    few_ants = min(fallback_ants, m)
 
-    def fallback(current: Array, alive: Array, nxt: Array, ok: Array) -> Array:
-        """Ants whose candidates are all tabu take the allowed node of largest weight in
-        their whole row (ACOTSP's rule): searched for those ants alone while there are at
-        most FALLBACK_ANTS of them, for every ant otherwise."""
-        everyone = lambda: jnp.where(ok, nxt, best_allowed(every, current, alive))  # noqa: E731
+    def fallback(current: Array, alive: Array, nxt: Array, pending: Array) -> Array:
+        """Ants ``pending`` take the allowed node of largest weight in their whole row
+        (ACOTSP's rule): searched for at most ``few_ants`` compacted ants, or (lazily, on steps
+        with more of them; always when not ``lazy``) for every ant."""
+        def everyone():
+            return jnp.where(pending, best_allowed(every, current, alive), nxt)
+
         if not lazy:
             return everyone()
-        pending = ~ok
-        ants = jnp.nonzero(pending, size=FALLBACK_ANTS, fill_value=0)[0]
+        ants = jnp.nonzero(pending, size=few_ants, fill_value=0)[0]
         best = best_allowed(ants, current[ants], alive[ants])
-        few = lambda: nxt.at[ants].set(jnp.where(pending[ants], best, nxt[ants]))  # noqa: E731
-        return jax.lax.cond(jnp.sum(pending) <= FALLBACK_ANTS, few, everyone)
+
+        def few():
+            return nxt.at[ants].set(jnp.where(pending[ants], best, nxt[ants]))
+
+        return jax.lax.cond(jnp.sum(pending) <= few_ants, few, everyone)
 
     def step(carry, u):
         current, alive = carry
         row = row_offset + current
         cand = cands[row]
-        w = cand_w[row] * alive.reshape(-1)[ant_base + cand]  # (m, k), tabu candidates 0
+        w = jnp.where(alive.reshape(-1)[ant_base + cand], cand_w[row], 0.0)  # (m, k)
         w = w if factor is None else w * factor.reshape(-1)[ant_base + cand]
         c, ok = _sample(w, u, q0)
         nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
+        pending = ~ok
+        if backup:  # first allowed node of the backup list: the whole-row answer
+            bk = bk_node[row]
+            valid = alive.reshape(-1)[ant_base + bk] & bk_pos[row]
+            first = jnp.argmax(valid, axis=1)
+            found = jnp.any(valid, axis=1)
+            nxt = jnp.where(pending & found,
+                            jnp.take_along_axis(bk, first[:, None], axis=1)[:, 0], nxt)
+            pending = pending & ~found
         if lazy:
-            nxt = jax.lax.cond(jnp.all(ok), lambda: nxt,
-                               lambda: fallback(current, alive, nxt, ok))
+            nxt = jax.lax.cond(jnp.any(pending),
+                               lambda: fallback(current, alive, nxt, pending), lambda: nxt)
         else:
-            nxt = fallback(current, alive, nxt, ok)
-        return (nxt, alive.at[every, nxt].set(0.0, unique_indices=True)), nxt
+            nxt = fallback(current, alive, nxt, pending)
+        return (nxt, alive.at[every, nxt].set(False, unique_indices=True)), nxt
 
     return step
 
@@ -161,6 +215,7 @@ def construct_tours(
     row_offset: Array | None = None,
     factor: Array | None = None,
     candidates: Array | None = None,
+    fallback: str = "auto",
 ) -> Array:
     """Build one tour per ant.
 
@@ -176,6 +231,11 @@ def construct_tours(
         the q0 rule act on the k candidates that are not tabu, and an ant whose candidates are
         all tabu moves to the allowed node of largest weight (as ACOTSP does); the cost of a
         step drops from O(m n) sampling to O(m k). Without them Eq. 2 runs over all n nodes.
+      fallback: how that whole-row search runs (static; every plan builds the same tours):
+        "auto" (:func:`fallback_plan` for this backend), "lazy" (a branch on steps where some
+        ant needs it, compacting up to FALLBACK_ANTS ants), "dense" (every ant's whole row on
+        every step), "backup" (a backup list of the BACKUP heaviest nodes per row first, then
+        the lazy compacted search for up to m // 16 ants).
 
     Returns:
       (m, n) int32 tours, each a permutation of 0..n-1 starting at ``starts``.
@@ -184,13 +244,21 @@ def construct_tours(
     m = starts.shape[0]
     if weights.shape[0] % n:
         raise ValueError(f"weights must have a multiple of n={n} rows, got {weights.shape}")
+    plans = {"lazy": (True, 0, FALLBACK_ANTS), "dense": (False, 0, m),
+             "backup": (True, min(BACKUP, n - 1), max(8, m // 16))}
+    if fallback == "auto":
+        plan = fallback_plan(m, n)
+    elif fallback in plans:
+        plan = plans[fallback]
+    else:
+        raise ValueError(f"fallback={fallback!r} is not one of auto, {', '.join(plans)}")
     starts = starts.astype(jnp.int32)
     if row_offset is None:
         row_offset = jnp.zeros((m,), jnp.int32)
     q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
-    alive = jnp.where(jnp.arange(n)[None, :] == starts[:, None], 0.0, 1.0)
+    alive = jnp.arange(n)[None, :] != starts[:, None]  # bool: 1 byte per entry
     uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
-    step = _step(weights, row_offset.astype(jnp.int32), q0, factor, candidates)
+    step = _step(weights, row_offset.astype(jnp.int32), q0, factor, candidates, *plan)
     _, path = jax.lax.scan(step, (starts, alive), uniforms, unroll=UNROLL)
     return jnp.concatenate([starts[:, None], path.T], axis=1)
 

@@ -176,3 +176,279 @@ def two_opt(
         tours
     )
     return (out, moves) if return_moves else out
+
+
+# --------------------------------------------------------------------------------------------
+# ACOTSP-style local search: first improvement over candidate lists with don't-look bits,
+# optionally followed by Or-opt segment moves. One move per loop iteration and tour.
+# --------------------------------------------------------------------------------------------
+#: Or-opt moves segments of 1..OR_OPT_MAX cities
+OR_OPT_MAX = 3
+
+
+def _shorter_side(n: int, a: Array, length: Array) -> tuple[Array, Array]:
+    """(start, length) of the side to reverse when reversing the cyclic segment of ``length``
+    positions from position ``a``: the segment, or its complement when that is shorter (the
+    same cycle; ACOTSP reverses the shorter side)."""
+    inner = length <= n - length
+    return jnp.where(inner, a, (a + length) % n), jnp.where(inner, length, n - length)
+
+
+def _move_positions(
+    n: int, base: Array, kind: Array, span: Array, t: Array, rev: Array
+) -> tuple[Array, Array]:
+    """Relative source index of every new relative position, and new relative position of every
+    old relative position, for one move in coordinates relative to ``base``.
+
+    ``kind`` 0: no move; 1: reverse relative positions ``[0, span)``; 2: Or-opt, move the
+    segment ``[0, span)`` to just after relative position ``t`` (``span <= t <= n - 2``),
+    reversed when ``rev``. Both are elementwise in the position index (O(n), no scatter).
+    """
+    q = jnp.arange(n, dtype=jnp.int32)
+    # reversal: q -> span - 1 - q inside the segment (an involution: src == dst)
+    rev_map = jnp.where(q < span, span - 1 - q, q)
+    # Or-opt: new order R[span..t], segment, R[t+1..]
+    lo = t - span + 1  # first new position of the segment
+    seg_src = jnp.where(rev, span - 1 - (q - lo), q - lo)
+    or_src = jnp.where(q <= t - span, q + span, jnp.where(q <= t, seg_src, q))
+    seg_dst = lo + jnp.where(rev, span - 1 - q, q)
+    or_dst = jnp.where(q < span, seg_dst, jnp.where(q <= t, q - span, q))
+    src = jnp.where(kind == 1, rev_map, jnp.where(kind == 2, or_src, q))
+    dst = jnp.where(kind == 1, rev_map, jnp.where(kind == 2, or_dst, q))
+    return src, dst
+
+
+def _apply_move(tour: Array, pos: Array, base: Array, src: Array, dst: Array):
+    """New (tour, pos) after a move given by relative maps (see :func:`_move_positions`)."""
+    n = tour.shape[0]
+    p = jnp.arange(n, dtype=jnp.int32)
+    new_tour = tour[(base + src[(p - base) % n]) % n]
+    new_pos = (base + dst[(pos - base) % n]) % n
+    return new_tour, new_pos
+
+
+def _first_true(mask: Array) -> tuple[Array, Array]:
+    """(index of the first True, whether any)."""
+    return jnp.argmax(mask).astype(jnp.int32), jnp.any(mask)
+
+
+def _dlb_one(
+    tour: Array,
+    order: Array,
+    dist: Array,
+    cand: Array,
+    cand_d: Array,
+    max_moves: int,
+    or_opt: bool,
+    full_check: bool,
+    block: int = 1,
+) -> tuple[Array, Array, Array]:
+    """Don't-look-bit local search of one tour: (tour, moves, loop iterations).
+
+    Cities are visited in the cyclic order ``order`` (a permutation of cities), skipping those
+    whose don't-look bit is set. For city ``c1`` with successor ``s1`` and predecessor ``p1``:
+
+    * 2-opt, successor side (ACOTSP's ``two_opt_first``): scan ``c1``'s candidates ``c2`` in
+      list order while ``d(c1, c2) < d(c1, s1)``; the first with a positive gain
+      ``d(c1,s1) + d(c2,s2) - d(c1,c2) - d(s1,s2)`` (``s2 = succ c2``) is applied. Then the
+      predecessor side likewise. The shorter of the two sides is reversed.
+    * Or-opt (when ``or_opt`` and no 2-opt move was found): the segments of 1..3 cities that
+      start or end at ``c1`` are moved next to a candidate ``c2`` of ``c1`` (between ``c2`` and
+      one of its tour neighbours, in the orientation that makes ``(c1, c2)`` an edge); the move
+      of largest positive gain is applied.
+    * A move clears the don't-look bits of the endpoints of every removed edge; no move sets
+      ``c1``'s bit. The search ends when every bit is set (with ``full_check``: and a full pass
+      over all cities found nothing, which makes the result a local optimum of the candidate
+      neighbourhood), or after ``max_moves`` moves.
+
+    Each loop iteration evaluates the next ``block`` cities with clear bits at once and applies
+    the first move found among them: the very search of one city per iteration (the same
+    moves, in the same order) in fewer, wider iterations.
+    """
+    n = tour.shape[0]
+    k = cand.shape[1]
+    cities = jnp.arange(n, dtype=jnp.int32)
+    rank = jnp.zeros(n, jnp.int32).at[order].set(cities)
+    pos0 = jnp.zeros(n, jnp.int32).at[tour].set(cities)
+
+    def evaluate(c1: Array, tour: Array, pos: Array):
+        """The move chosen at city c1: (kind 0/1/2, base, span, t, reversed, 6 endpoints)."""
+        i1 = pos[c1]
+        s1, p1 = tour[(i1 + 1) % n], tour[(i1 - 1) % n]
+        c2s, d12 = cand[c1], cand_d[c1]
+        # --- 2-opt, successor then predecessor side (radius-pruned, first improvement)
+        s2 = tour[(pos[c2s] + 1) % n]
+        rad_s = dist[c1, s1]
+        ok_s = jnp.cumprod(d12 < rad_s).astype(bool) & (c2s != p1)
+        g_s = rad_s + dist[c2s, s2] - d12 - dist[s1, s2]
+        h_s, any_s = _first_true(ok_s & (g_s > 0))
+        p2 = tour[(pos[c2s] - 1) % n]
+        rad_p = dist[p1, c1]
+        ok_p = jnp.cumprod(d12 < rad_p).astype(bool) & (c2s != s1)
+        g_p = rad_p + dist[p2, c2s] - d12 - dist[p1, p2]
+        h_p, any_p = _first_true(ok_p & (g_p > 0))
+        two = any_s | any_p
+        c2 = jnp.where(any_s, c2s[h_s], c2s[h_p])
+        # successor side: reverse s1..c2; predecessor side: reverse c1..p2
+        a = jnp.where(any_s, pos[s1], i1)
+        b = jnp.where(any_s, pos[c2], pos[p2[h_p]])
+        base2, span2 = _shorter_side(n, a, (b - a) % n + 1)
+        ends2 = jnp.stack([c1, jnp.where(any_s, s1, p1), c2,
+                           jnp.where(any_s, s2[h_s], p2[h_p])])
+        kind = jnp.where(two, 1, 0)
+        base, span, t, rv = base2, span2, jnp.int32(0), jnp.bool_(False)
+        ends = jnp.concatenate([ends2, ends2[:2]])
+        if or_opt:
+            # segments: forward [c1 .. c1+L-1] (c1 first) and backward [c1-L+1 .. c1] (c1
+            # last), L = 1..3 (L = 1 only once); sa = start position, c1 at one end
+            lens = jnp.array([1, 2, 3, 2, 3], jnp.int32)[: 2 * OR_OPT_MAX - 1]
+            back = jnp.arange(lens.shape[0]) >= OR_OPT_MAX
+            sa = jnp.where(back, i1 - lens + 1, i1) % n
+            first, last = tour[sa], tour[(sa + lens - 1) % n]
+            pp, ss = tour[(sa - 1) % n], tour[(sa + lens) % n]
+            g_rem = dist[pp, first] + dist[last, ss] - dist[pp, ss]  # (S,)
+            # the other end of each segment (away from c1)
+            other = jnp.where(back, first, last)
+            qc2 = (pos[c2s][None, :] - sa[:, None]) % n  # (S, k) relative position of c2
+            in_seg = qc2 < lens[:, None]
+            succ_c2 = tour[(pos[c2s] + 1) % n]
+            pred_c2 = tour[(pos[c2s] - 1) % n]
+            # after c2: c2 - c1 .. other - succ(c2); before c2: pred(c2) - other .. c1 - c2
+            g_after = (dist[c2s, succ_c2][None, :] - d12[None, :]
+                       - dist[other[:, None], succ_c2[None, :]])
+            g_before = (dist[pred_c2, c2s][None, :] - d12[None, :]
+                        - dist[pred_c2[None, :], other[:, None]])
+            ok_after = ~in_seg & (qc2 != n - 1)  # c2 != pp (that is the segment's own place)
+            ok_before = ~in_seg & (qc2 != lens[:, None])  # c2 != ss
+            g_or = jnp.stack([jnp.where(ok_after, g_rem[:, None] + g_after, -jnp.inf),
+                              jnp.where(ok_before, g_rem[:, None] + g_before, -jnp.inf)],
+                             axis=-1)  # (S, k, 2)
+            flat = jnp.argmax(g_or.reshape(-1)).astype(jnp.int32)
+            best_or = g_or.reshape(-1)[flat]
+            si, hi, side = flat // (2 * k), (flat // 2) % k, flat % 2
+            do_or = ~two & (best_or > 0)
+            oc2 = c2s[hi]
+            # insert after relative position t: after c2 -> t = q(c2); before c2 -> q(c2) - 1
+            t_or = qc2[si, hi] - side
+            # forward segment (c1 first): after c2 keeps order, before c2 reverses;
+            # backward segment (c1 last): after c2 reverses, before c2 keeps order
+            rv_or = jnp.where(back[si], side == 0, side == 1)
+            nb = jnp.where(side == 0, succ_c2[hi], pred_c2[hi])
+            ends_or = jnp.stack([pp[si], ss[si], first[si], last[si], oc2, nb])
+            kind = jnp.where(do_or, 2, kind)
+            base = jnp.where(do_or, sa[si], base)
+            span = jnp.where(do_or, lens[si], span)
+            t, rv = jnp.where(do_or, t_or, t), jnp.where(do_or, rv_or, rv)
+            ends = jnp.where(do_or, ends_or, ends)
+        return kind, base, span, t, rv, ends
+
+    blk_size = min(block, n)
+    slots = jnp.arange(blk_size)
+
+    def body(carry):
+        tour, pos, active, ptr, moves, iters, dirty = carry
+        # the next blk_size cities with a clear bit, in cyclic order from ptr, all evaluated on
+        # the current tour: until the first of them that moves, the one-by-one search would
+        # find the same nothing (the tour does not change), so this is the same search
+        if blk_size == 1:
+            c1 = jnp.argmin(jnp.where(active, (rank - ptr) % n, n)).astype(jnp.int32)
+            blk, valid = c1[None], active[c1][None]
+        else:  # prefix count of active cities along the order, from ptr (no sort)
+            walk = order[(ptr + cities) % n]
+            on = active[walk]
+            slot = jnp.cumsum(on) - 1
+            keep = on & (slot < blk_size)
+            blk = jnp.zeros(blk_size, jnp.int32).at[jnp.where(keep, slot, blk_size)].set(
+                walk, mode="drop")
+            valid = slots < jnp.sum(on)
+        kind, base, span, t, rv, ends = jax.vmap(evaluate, (0, None, None))(blk, tour, pos)
+        j, moved = _first_true(valid & (kind > 0))
+        done = valid & (slots < jnp.where(moved, j, blk_size))  # searched, nothing found
+        active = active.at[blk].set(active[blk] & ~done, unique_indices=True)
+        kind = jnp.where(moved, kind[j], 0)
+        src, dst = _move_positions(n, base[j], kind, span[j], t[j], rv[j])
+        tour, pos = _apply_move(tour, pos, base[j], src, dst)
+        active = jnp.where(moved, active.at[ends[j]].set(True), active)
+        dirty = dirty | moved
+        if full_check:  # all bits set after a pass with moves: one more full pass
+            again = ~jnp.any(active) & dirty
+            active = active | again
+            dirty = dirty & ~again
+        last = jnp.where(moved, blk[j], blk[jnp.sum(valid) - 1])
+        ptr = (rank[last] + 1) % n
+        return tour, pos, active, ptr, moves + moved.astype(jnp.int32), iters + 1, dirty
+
+    def cond(carry):
+        _, _, active, _, moves, _, _ = carry
+        return jnp.any(active) & (moves < max_moves)
+
+    zero = jnp.int32(0)
+    init = (tour, pos0, jnp.ones(n, bool), zero, zero, zero, jnp.bool_(False))
+    tour, _, _, _, moves, iters, _ = jax.lax.while_loop(cond, body, init)
+    return tour, moves, iters
+
+
+@partial(jax.jit, static_argnames=("max_moves", "return_moves", "or_opt", "full_check",
+                                   "block"))
+def dlb_local_search(
+    key: Array | None,
+    tours: Array,
+    dist: Array,
+    neighbors: Array | None = None,
+    max_moves: int | None = None,
+    or_opt: bool = False,
+    full_check: bool = False,
+    return_moves: bool = False,
+    order: Array | None = None,
+    block: int = 1,
+) -> Array | tuple[Array, Array]:
+    """ACOTSP-style 2-opt (and optionally Or-opt) of every tour ``(m, n)``, see :func:`_dlb_one`.
+
+    Args:
+      key: PRNG key for each tour's random city order (ACOTSP's ``random_vector``); None: the
+        identity order (or ``order``).
+      tours: int32 ``(m, n)`` permutations.
+      dist: ``(n, n)`` float32 symmetric distances.
+      neighbors: ``(n, k)`` candidate lists sorted nearest first; None = all cities.
+      max_moves: cap on improving moves per tour (default ``4 n``).
+      or_opt: also try Or-opt segment moves (1-3 cities) when no 2-opt move improves.
+      full_check: end only after a full pass without moves (a true candidate-list optimum).
+      return_moves: also return the number of moves per tour.
+      order: ``(m, n)`` explicit city orders (overrides ``key``; for tests).
+      block: cities evaluated per loop iteration (the result does not depend on it).
+    Returns:
+      improved int32 tours ``(m, n)``, each no longer than its input.
+    """
+    tours = jnp.asarray(tours, jnp.int32)
+    dist = jnp.asarray(dist, jnp.float32)
+    _check(tours, dist, neighbors)
+    m, n = tours.shape
+    if or_opt and n < 2 * OR_OPT_MAX + 2:
+        raise ValueError(f"Or-opt needs at least {2 * OR_OPT_MAX + 2} cities, got {n}")
+    cand = _candidates(dist, neighbors)
+    cand_d = dist[jnp.arange(n)[:, None], cand]
+    mm = _default_max_moves(n, max_moves)
+    if order is None:
+        if key is None:
+            order = jnp.broadcast_to(jnp.arange(n, dtype=jnp.int32), (m, n))
+        else:
+            keys = jax.random.split(key, m)
+            order = jax.vmap(lambda kk: jax.random.permutation(kk, n))(keys).astype(jnp.int32)
+    order = jnp.asarray(order, jnp.int32)
+
+    def one(t, o):
+        return _dlb_one(t, o, dist, cand, cand_d, mm, or_opt, full_check, block)
+
+    out, moves, _ = jax.vmap(one)(tours, order)
+    return (out, moves) if return_moves else out
+
+
+def best_k(tours: Array, lengths: Array, k: int | None, improve) -> Array:
+    """Apply ``improve(tours) -> tours`` to the ``k`` shortest tours only (all when None or
+    ``k >= m``); the others are returned unchanged. Static shapes: ``k`` is a Python int."""
+    tours = jnp.asarray(tours, jnp.int32)
+    m = tours.shape[0]
+    if k is None or k >= m:
+        return improve(tours)
+    _, idx = jax.lax.top_k(-lengths, k)
+    return tours.at[idx].set(improve(tours[idx]), unique_indices=True)

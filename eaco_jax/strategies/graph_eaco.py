@@ -69,7 +69,7 @@ from eaco_jax.strategies.base import State, Strategy, as_params, base_fields, re
 
 Array = jax.Array
 
-LOCAL_SEARCHES = ("2opt", "none")
+LOCAL_SEARCHES = ("2opt", "2opt-dlb", "2opt+oropt", "none")
 CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
 
@@ -141,8 +141,13 @@ class GraphEACO(Strategy):
     mutation: str = "auto"
     #: cap on 2-opt improving moves per tour per iteration (None: run to a local optimum)
     max_ls_moves: int | None = None
+    #: local search on the ls_best_k shortest tours of each iteration only (None: all ants)
+    ls_best_k: int | None = None
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
+    #: how construction's whole-row fallback runs ("auto", "lazy", "dense", "backup"; see
+    #: construction.construct_tours): a cost choice only, every plan builds the same tours
+    construction_fallback: str = "auto"
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -152,6 +157,8 @@ class GraphEACO(Strategy):
                 object.__setattr__(self, name, on if with_ls else "none")
         if self.num_ants < 1:
             raise ConfigError(f"num_ants must be >= 1, got {self.num_ants}")
+        if self.ls_best_k is not None and self.ls_best_k < 1:
+            raise ConfigError(f"ls_best_k must be >= 1 or None, got {self.ls_best_k}")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
@@ -219,7 +226,10 @@ class GraphEACO(Strategy):
         m, n = self.num_ants, state.tau.shape[0]
         dist = jnp.asarray(problem.dist, jnp.float32)
         log_eta = heuristic_log_eta(dist)
-        k_start, k_build, k_cx, k_mut = jax.random.split(key, 4)
+        # the ACOTSP-style searches draw a random city order: a fifth key (the other kinds keep
+        # the four-way split, so their tours are unchanged)
+        dlb = self.local_search in ("2opt-dlb", "2opt+oropt")
+        k_start, k_build, k_cx, k_mut, *k_ls = jax.random.split(key, 5 if dlb else 4)
 
         x = chaos.logistic_step(state.chaos)
         factor = jnp.where(p.use_chaos, chaos.perturbation(x, p.chaos_strength), 1.0)
@@ -241,7 +251,8 @@ class GraphEACO(Strategy):
         cands = problem.neighbors if self.candidate_lists else None
 
         def build(chaos_factor):
-            return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands)
+            return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands,
+                                   self.construction_fallback)
 
         # without chaos the factor is all ones: skip its per-step gathers and products
         built = jax.lax.cond(p.use_chaos, lambda: build(factor), lambda: build(None))
@@ -249,7 +260,7 @@ class GraphEACO(Strategy):
         l_pn = tour_lengths(dist, pher_tour)[0]
 
         tours = self._genetic(k_cx, k_mut, tours, state, dist)
-        tours = self._local_search(tours, problem)
+        tours = self._local_search(tours, problem, k_ls[0] if k_ls else None)
         return tours, state.replace(chaos=x, pheromone_tour_length=l_pn)
 
     def _genetic(
@@ -292,13 +303,27 @@ class GraphEACO(Strategy):
             tours = jnp.where(do[:, None], mutants, tours)
         return tours
 
-    def _local_search(self, tours: Array, problem: Any) -> Array:
+    def _local_search(self, tours: Array, problem: Any, key: Array | None = None) -> Array:
+        """2-opt ("2opt": batched best improvement; "2opt-dlb": ACOTSP's first improvement with
+        don't-look bits; "2opt+oropt": the latter plus Or-opt), on every ant or on the
+        ``ls_best_k`` shortest tours only."""
         if self.local_search == "none":
             return tours
         from eaco_jax.ops import local_search
 
         dist = jnp.asarray(problem.dist, jnp.float32)
-        return local_search.two_opt(tours, dist, problem.neighbors, self.max_ls_moves)
+        neighbors = problem.neighbors
+        if self.local_search == "2opt":
+            def improve(t):
+                return local_search.two_opt(t, dist, neighbors, self.max_ls_moves)
+        else:
+            def improve(t):
+                return local_search.dlb_local_search(
+                    key, t, dist, neighbors, self.max_ls_moves,
+                    or_opt=self.local_search == "2opt+oropt")
+        if self.ls_best_k is None or self.ls_best_k >= tours.shape[0]:
+            return improve(tours)
+        return local_search.best_k(tours, tour_lengths(dist, tours), self.ls_best_k, improve)
 
     # ------------------------------------------------------------------ tell
     def _tell(

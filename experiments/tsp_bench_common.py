@@ -1,0 +1,132 @@
+"""Shared pieces of the TSP benchmarks: finding instances, timed runs through the public API.
+
+* :func:`find_instance` loads a bundled TSPLIB instance by name, or one from a data folder
+  (``--data-dir``; default ``$EACO_TSPLIB_DIR``, ``out/tsplib`` and ``shared/data/tsplib``
+  beside the repository, ``/work/shared/data/tsplib``) with its optimum from that folder's
+  ``optima.csv``.
+* :func:`run_timed` runs ``eaco_jax.minimize`` for a wall-time budget and records the best
+  length after every chunk: through ``minimize(..., max_seconds=S)`` when the driver has it,
+  otherwise by stopping from the ``on_chunk`` callback. Compile time is reported apart.
+* :func:`device_info` names the device and versions for the JSON files.
+"""
+
+from __future__ import annotations
+
+import csv
+import inspect
+import os
+import platform
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def data_dirs(extra: list[Path] | None = None) -> list[Path]:
+    """Folders searched for ``NAME.tsp`` after the bundled instances, first match wins."""
+    dirs = list(extra or [])
+    if os.environ.get("EACO_TSPLIB_DIR"):
+        dirs.append(Path(os.environ["EACO_TSPLIB_DIR"]))
+    dirs += [REPO / "out" / "tsplib", REPO / "shared" / "data" / "tsplib",
+             REPO.parent / "shared" / "data" / "tsplib", Path("/work/shared/data/tsplib")]
+    return [d for d in dirs if d.is_dir()]
+
+
+def find_instance(name: str, extra: list[Path] | None = None, neighbors: int | None = None):
+    """A TSP by bundled name or from a data folder (optimum from its ``optima.csv``)."""
+    from eaco_jax.problems import load_tsplib
+    from eaco_jax.problems.tsp import DATA_DIR
+
+    kw = {} if neighbors is None else {"neighbors": neighbors}
+    if (DATA_DIR / f"{name}.tsp").is_file():
+        return load_tsplib(name, **kw)
+    for d in data_dirs(extra):
+        path = d / f"{name}.tsp"
+        if path.is_file():
+            problem = load_tsplib(path, **kw)
+            if problem.optimum is None and (d / "optima.csv").is_file():
+                with open(d / "optima.csv", newline="") as fh:
+                    optima = {r["name"]: float(r["optimal_tour_length"])
+                              for r in csv.DictReader(fh)}
+                if name in optima:
+                    problem = problem.replace(optimum=optima[name])
+            return problem
+    raise FileNotFoundError(f"{name}.tsp is neither bundled nor in {data_dirs(extra)}; "
+                            "pass --data-dir")
+
+
+def device_info() -> dict:
+    """Device kind, backend and versions, for results files."""
+    import jax
+
+    dev = jax.devices()[0]
+    return {"device": getattr(dev, "device_kind", str(dev)), "backend": jax.default_backend(),
+            "device_count": jax.device_count(), "jax": jax.__version__,
+            "host": platform.node(), "cpus": os.cpu_count(),
+            "affinity": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+            else None}
+
+
+def enable_compile_cache(path: Path | None) -> None:
+    """JAX's persistent compilation cache in ``path`` (a second run compiles nothing)."""
+    if path is None:
+        return
+    import jax
+
+    path.mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+
+
+class _Budget(Exception):
+    """Raised from on_chunk to end a run whose wall-time budget is spent (fallback mode)."""
+
+
+def run_timed(problem, strategy, seed: int, seconds: float, chunk: int,
+              max_iterations: int = 10**7) -> dict:
+    """One seeded run for ``seconds`` of search after compilation.
+
+    Returns ``trace`` (list of ``[seconds_after_compile, best_length, iterations]`` after each
+    chunk), ``compile_seconds``, ``best`` and whether the driver's ``max_seconds`` was used.
+    In the fallback, the first chunk's time minus the median chunk time counts as compile time
+    and the trace clock starts at the end of the first chunk minus one median chunk.
+    """
+    import numpy as np
+
+    from eaco_jax import minimize
+
+    marks: list[tuple[float, float, int]] = []
+    t_call = time.perf_counter()
+    native = "max_seconds" in inspect.signature(minimize).parameters
+
+    def on_chunk(state, done):
+        best = float(np.min(np.asarray(state.best_cost)))
+        marks.append((time.perf_counter(), best, int(done)))
+        if not native and len(marks) > 1 and marks[-1][0] - marks[0][0] >= seconds:
+            raise _Budget
+
+    kw = {"max_seconds": seconds} if native else {}
+    compile_s = None
+    try:
+        res = minimize(problem, strategy, seed=seed, iterations=max_iterations,
+                       chunk_size=chunk, on_chunk=on_chunk, **kw)
+        compile_s = float(getattr(res, "compile_seconds", 0.0) or 0.0)
+    except _Budget:
+        pass
+    times = np.array([m[0] for m in marks])
+    chunk_s = float(np.median(np.diff(times))) if len(times) > 2 else 0.0
+    first = times[0] - t_call
+    if compile_s is None or not native:
+        compile_s = max(first - chunk_s, 0.0)
+    t0 = t_call + compile_s
+    trace = [[round(t - t0, 4), b, it] for t, b, it in marks]
+    return {"seed": seed, "compile_seconds": compile_s, "chunk_seconds": chunk_s,
+            "native_budget": native, "best": trace[-1][1] if trace else None,
+            "iterations": trace[-1][2] if trace else 0, "trace": trace}
+
+
+def best_at(trace: list, t: float) -> float | None:
+    """Best length reached by ``t`` seconds after compilation (None: no chunk ended by then)."""
+    got = [b for s, b, _ in trace if s <= t]
+    return min(got) if got else None

@@ -1,0 +1,199 @@
+"""Gap to the optimum against wall time (issue 15, item 5), with ACOTSP alongside on the CPU.
+
+Per instance and seed, one ``eaco_jax.minimize`` run of ``GraphEACO`` (``--ants``,
+``--local-search``, ``--ls-best-k``) for ``--seconds`` of search after compilation (through
+the driver's ``max_seconds`` when it has one, else stopped from ``on_chunk``; see
+``tsp_bench_common.run_timed``). The best length after every chunk gives a curve; the table
+shows the mean gap over seeds at ``--checkpoints`` seconds, after compilation and from the call
+(compile included). With ``--acotsp PATH`` (a binary built outside this repository) ACOTSP runs
+each seed for the same time, MMAS with ``--acotsp-ants`` ants and each local search of
+``--acotsp-ls`` (2: 2-opt, 3: 3-opt), one process at a time: pin with ``taskset -c N`` and
+compare on the same core. Writes JSON (device, versions, every trace) and a PNG of the curves.
+
+    taskset -c 1 python experiments/tsp_time_to_quality.py --instances pcb442 a280 \\
+        --seconds 10 --checkpoints 1 3 10 --acotsp ~/ACOTSP/acotsp        # CPU, one core
+    python experiments/tsp_time_to_quality.py --ants 4096 --data-dir DIR  # GPU
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from tsp_bench_common import (  # noqa: E402
+    best_at,
+    device_info,
+    enable_compile_cache,
+    find_instance,
+    run_timed,
+)
+
+RESULTS = Path(__file__).resolve().parent / "results" / "tsp_time_to_quality.json"
+
+
+def acotsp_file(name: str, data_dirs: list[Path] | None) -> Path:
+    """The .tsp file ACOTSP reads for an instance."""
+    from tsp_bench_common import data_dirs as dirs
+
+    from eaco_jax.problems.tsp import DATA_DIR
+
+    for d in [DATA_DIR, *dirs(data_dirs)]:
+        if (d / f"{name}.tsp").is_file():
+            return d / f"{name}.tsp"
+    raise FileNotFoundError(name)
+
+
+def run_acotsp_trace(binary: Path, tsp: Path, seconds: float, seed: int, ls: int,
+                     ants: int) -> dict:
+    """One ACOTSP MMAS try with local search ``ls``: its improvements as (time, length)."""
+    with tempfile.TemporaryDirectory() as tmp:  # ACOTSP writes report files into its cwd
+        out = subprocess.run(
+            [str(binary), "-i", str(tsp), "--mmas", "-m", str(ants), "-l", str(ls), "-r", "1",
+             "-t", str(seconds), "--seed", str(seed)],
+            capture_output=True, text=True, check=True, cwd=tmp).stdout
+    trace = [[float(t), int(b), int(it)] for b, it, t in re.findall(
+        r"best so far (\d+), iteration: (\d+), time ([\d.]+)", out)]
+    final = re.findall(r"Best (\d+), found at iteration (\d+), found at time ([\d.]+)", out)
+    if final:
+        b, it, t = final[-1]
+        trace.append([float(t), int(b), int(it)])
+    if not trace:
+        raise RuntimeError(f"no result in ACOTSP's output:\n{out[-500:]}")
+    trace.sort()
+    return {"seed": seed, "best": min(b for _, b, _ in trace),
+            "trace": [[t, b, it] for t, b, it in trace]}
+
+
+def summarize(traces: list[list], optimum: float, checkpoints: list[float],
+              offsets: list[float] | None = None) -> dict:
+    """Mean gap (%) over runs at each checkpoint (runs with nothing yet count as missing)."""
+    out = {}
+    for t in checkpoints:
+        gaps = []
+        for i, tr in enumerate(traces):
+            b = best_at(tr, t - (offsets[i] if offsets else 0.0))
+            if b is not None:
+                gaps.append(100.0 * (b / optimum - 1.0))
+        out[str(t)] = {"mean_gap_percent": statistics.mean(gaps) if gaps else None,
+                       "runs_with_result": len(gaps)}
+    return out
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    """Mean gap curves per instance (log time axis)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    names = sorted({r["instance"] for r in rows})
+    fig, axes = plt.subplots(1, len(names), figsize=(5 * len(names), 4), squeeze=False)
+    for ax, name in zip(axes[0], names, strict=True):
+        for r in (r for r in rows if r["instance"] == name):
+            grid = np.geomspace(0.05, r["seconds"], 60)
+            mean = []
+            for t in grid:
+                got = [best_at(run["trace"], t) for run in r["runs"]]
+                got = [g for g in got if g is not None]
+                mean.append(100 * (np.mean(got) / r["optimum"] - 1) if got else np.nan)
+            ax.plot(grid, mean, label=r["solver"])
+        ax.set_xscale("log")
+        ax.set_yscale("symlog", linthresh=0.1)
+        ax.set_xlabel("seconds after compilation")
+        ax.set_ylabel("mean gap to optimum (%)")
+        ax.set_title(name)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--instances", nargs="+", default=["pcb442", "rat783", "pr1002", "d2103"])
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--checkpoints", type=float, nargs="+", default=[1, 3, 10, 30])
+    ap.add_argument("--ants", type=int, default=40)
+    ap.add_argument("--local-search", default="2opt")
+    ap.add_argument("--ls-best-k", type=int)
+    ap.add_argument("--chunk", type=int, default=5)
+    ap.add_argument("--acotsp", type=Path, help="ACOTSP binary (built outside the repository)")
+    ap.add_argument("--acotsp-ls", type=int, nargs="+", default=[2, 3])
+    ap.add_argument("--acotsp-ants", type=int, default=25)
+    ap.add_argument("--data-dir", type=Path, action="append")
+    ap.add_argument("--cache-dir", type=Path, default=Path("out/jax_cache"))
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    args = ap.parse_args()
+    enable_compile_cache(args.cache_dir)
+    from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    strategy = GraphEACO(num_ants=args.ants, local_search=args.local_search,
+                         ls_best_k=args.ls_best_k)
+    label = f"eaco {args.ants} ants {args.local_search}" + (
+        f" best{args.ls_best_k}" if args.ls_best_k else "")
+    rows = []
+    for name in args.instances:
+        problem = find_instance(name, args.data_dir)
+        runs = []
+        for seed in range(args.seeds):
+            r = run_timed(problem, strategy, seed, args.seconds, args.chunk)
+            runs.append(r)
+            print(f"{name:>8} {label} seed {seed}: {100 * (r['best'] / problem.optimum - 1):.3f}%"
+                  f" after {r['iterations']} iterations, compile {r['compile_seconds']:.1f} s",
+                  flush=True)
+        traces = [r["trace"] for r in runs]
+        rows.append({"instance": name, "optimum": problem.optimum, "solver": label,
+                     "seconds": args.seconds, "seeds": args.seeds,
+                     "after_compile": summarize(traces, problem.optimum, args.checkpoints),
+                     "from_call": summarize(traces, problem.optimum, args.checkpoints,
+                                            [r["compile_seconds"] for r in runs]),
+                     "mean_compile_seconds": statistics.mean(r["compile_seconds"]
+                                                             for r in runs),
+                     "runs": runs})
+        if args.acotsp:
+            tsp = acotsp_file(name, args.data_dir)
+            for ls in args.acotsp_ls:
+                aruns = [run_acotsp_trace(args.acotsp, tsp, args.seconds, s + 1, ls,
+                                          args.acotsp_ants) for s in range(args.seeds)]
+                tr = [r["trace"] for r in aruns]
+                rows.append({"instance": name, "optimum": problem.optimum,
+                             "solver": f"ACOTSP MMAS {args.acotsp_ants} ants -l {ls}",
+                             "seconds": args.seconds, "seeds": args.seeds,
+                             "after_compile": summarize(tr, problem.optimum, args.checkpoints),
+                             "from_call": summarize(tr, problem.optimum, args.checkpoints),
+                             "mean_compile_seconds": 0.0, "runs": aruns})
+                final = statistics.mean(100 * (r["best"] / problem.optimum - 1) for r in aruns)
+                print(f"{name:>8} {rows[-1]['solver']}: final mean gap {final:.3f}%", flush=True)
+    head = "".join(f"{f'@{t:g}s':>9}" for t in args.checkpoints)
+    print(f"\nmean gap % after compilation (from the call, compile included, in brackets)\n"
+          f"{'instance':>8} {'solver':>34}{head} {'compile s':>9}")
+    for r in rows:
+        cells = ""
+        for t in args.checkpoints:
+            a = r["after_compile"][str(t)]["mean_gap_percent"]
+            cells += f"{a:9.3f}" if a is not None else f"{'-':>9}"
+        print(f"{r['instance']:>8} {r['solver']:>34}{cells} {r['mean_compile_seconds']:9.1f}")
+        cells = ""
+        for t in args.checkpoints:
+            a = r["from_call"][str(t)]["mean_gap_percent"]
+            cells += f"{f'({a:.3f})':>9}" if a is not None else f"{'(-)':>9}"
+        print(f"{'':>8} {'':>34}{cells}")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"info": device_info(), "argv": sys.argv[1:], "rows": rows},
+                                   indent=1) + "\n")
+    png = args.out.with_suffix(".png")
+    plot(rows, png)
+    print(f"wrote {args.out} and {png}")
+
+
+if __name__ == "__main__":
+    main()
