@@ -208,3 +208,24 @@ def test_export_replays_on_plain_mujoco(tmp_path):
     assert run["qpos"][-1, 0] - run["qpos"][0, 0] > 0.1  # the exported run walks
     sim = p.simulate(_gait(), record=True)  # and it is the run eaco simulates
     np.testing.assert_allclose(run["qpos"][:, :3], sim["torso_xyz"], atol=2e-3)
+
+
+def test_search_draws_fresh_worlds_each_iteration_reproducibly():
+    """A robust problem is stochastic: the driver hands evaluate a key per iteration (fresh
+    worlds), and the same seed gives the same run."""
+    import eaco_jax as ea
+    from eaco_jax.gait.worlds import RobustConfig
+    from eaco_jax.problems.gait import make_gait_problem
+    from eaco_jax.strategies import ContinuousEACO
+
+    p = make_gait_problem("nao", backend="native", horizon=0.2, robust=RobustConfig(R=2))
+    assert p.stochastic
+    fixed = p.replace(robust=RobustConfig(R=2, resample=False))
+    assert not fixed.stochastic
+    s = ContinuousEACO(num_ants=3, archive_size=3, refine_ants=0, repair_steps=0)
+    a = ea.minimize(p, s, seed=4, iterations=2, chunk_size=2)
+    b = ea.minimize(p, s, seed=4, iterations=2, chunk_size=2)
+    np.testing.assert_array_equal(a.history["iter_mean_cost"], b.history["iter_mean_cost"])
+    x = jnp.broadcast_to((p.lower + p.upper) / 2, (3, p.dim))
+    k1, k2 = jax.random.split(jax.random.key(0))
+    assert not np.array_equal(np.asarray(p.evaluate(x, k1).f), np.asarray(p.evaluate(x, k2).f))

@@ -125,10 +125,19 @@ def default_strategy(problem: Any) -> Strategy:
 
 # --------------------------------------------------------------------------- one iteration
 def iteration_step(strategy: Strategy, problem: Any, state: State) -> tuple[State, dict]:
-    """One ask -> evaluate -> tell round; the key for it is split off ``state.key``."""
-    key, ask_key = jax.random.split(state.key)
-    solutions, state = strategy.ask(ask_key, state.replace(key=key), problem)
-    fitness = problem.evaluate(solutions)
+    """One ask -> evaluate -> tell round; the keys for it are split off ``state.key``.
+
+    A problem with ``stochastic = True`` (a gait under fresh randomised worlds) gets its own
+    key too: ``problem.evaluate(solutions, key=...)``.
+    """
+    if getattr(problem, "stochastic", False):
+        key, ask_key, eval_key = jax.random.split(state.key, 3)
+        solutions, state = strategy.ask(ask_key, state.replace(key=key), problem)
+        fitness = problem.evaluate(solutions, key=eval_key)
+    else:
+        key, ask_key = jax.random.split(state.key)
+        solutions, state = strategy.ask(ask_key, state.replace(key=key), problem)
+        fitness = problem.evaluate(solutions)
     return strategy.tell(state, solutions, fitness, problem)
 
 

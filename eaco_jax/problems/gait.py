@@ -70,6 +70,11 @@ class GaitProblem:
     differentiable = False  # a simulation: no gradient repair / refinement steps
 
     @property
+    def stochastic(self) -> bool:
+        """Whether ``evaluate`` takes a ``key`` (fresh randomised worlds each evaluation)."""
+        return self.robust is not None and self.robust.resample
+
+    @property
     def dim(self) -> int:
         return int(self.lower.shape[-1])
 
