@@ -7,8 +7,9 @@ the search box to ``R`` x (box width) around a stored gait (a second, local stag
 
 ``--robust R`` scores every ant in R randomised worlds (``RobustConfig``: friction, masses,
 motors, target noise and latency, initial pose, a push), aggregated by ``--aggregate`` (cvar,
-worst or mean); the worlds are fixed by ``--world-seed`` for the whole search (a deterministic
-fixed worlds overfit them). ``--penalty cot|power --penalty-weight W`` makes the fitness energy-aware.
+worst or mean); the search draws fresh worlds every iteration from ``--world-seed``'s stream
+(fixed worlds overfit them). ``--penalty cot|power --penalty-weight W`` makes the fitness
+energy-aware.
 ``--trials N`` then replays the best gait in N fresh randomised worlds (a key stream disjoint
 from the search's) on every verified backend, and ``--accurate-trials`` once more on native
 MuJoCo with its default solver settings.
