@@ -353,14 +353,9 @@ def _dlb_one(
         if blk_size == 1:
             c1 = jnp.argmin(jnp.where(active, (rank - ptr) % n, n)).astype(jnp.int32)
             blk, valid = c1[None], active[c1][None]
-        else:  # prefix count of active cities along the order, from ptr (no sort)
-            walk = order[(ptr + cities) % n]
-            on = active[walk]
-            slot = jnp.cumsum(on) - 1
-            keep = on & (slot < blk_size)
-            blk = jnp.zeros(blk_size, jnp.int32).at[jnp.where(keep, slot, blk_size)].set(
-                walk, mode="drop")
-            valid = slots < jnp.sum(on)
+        else:  # the blk_size nearest active cities along the order (tested move for move)
+            neg, blk = jax.lax.top_k(-jnp.where(active, (rank - ptr) % n, n), blk_size)
+            valid = neg > -n
         kind, base, span, t, rv, ends = jax.vmap(evaluate, (0, None, None))(blk, tour, pos)
         j, moved = _first_true(valid & (kind > 0))
         done = valid & (slots < jnp.where(moved, j, blk_size))  # searched, nothing found
