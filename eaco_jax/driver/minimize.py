@@ -170,9 +170,12 @@ _COMPILED_MAX = 32
 
 
 def _signature(tree: Any) -> tuple:
+    """Shapes, dtypes and shardings of ``tree``'s leaves: what a compiled chunk is bound to."""
     leaves, treedef = jax.tree_util.tree_flatten(tree)
     return treedef, tuple((tuple(np.shape(x)), str(getattr(x, "dtype", type(x))),
-                           bool(getattr(x, "weak_type", False))) for x in leaves)
+                           bool(getattr(x, "weak_type", False)),
+                           getattr(x, "sharding", None) if isinstance(x, jax.Array) else None)
+                          for x in leaves)
 
 
 def compiled_chunk(strategy: Strategy, length: int, batched: bool, problem: Any,
