@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/eaco tsp eil51 --iterations 200 --out out/tsp
-	$(BIN)/eaco gait --robot nao --out out/gait
+	$(BIN)/eaco gait --robot nao --init experiments/results/nao_best_gait.json --out out/gait
 	$(BIN)/eaco gait-eval experiments/results/nao_best_gait.json --horizon 20 --out out/best_gait
 
 test: $(STAMP)
