@@ -1,0 +1,139 @@
+"""Numbers the library reports are true: exact tour lengths, hard evaluation budgets, float64
+feasibility re-checks, checked hyper-parameters, one-line errors for nonsense."""
+
+from __future__ import annotations
+
+import warnings
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import eaco_jax as ea
+from eaco_jax.errors import ConfigError, ProblemError
+from eaco_jax.problems import TSP, ConstrainedProblem, load_tsplib
+from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+from eaco_jax.strategies.graph_eaco import GraphEACO
+
+
+# --------------------------------------------------------------------------- item 0: tours
+def test_from_coords_keeps_real_distances_unless_a_rule_is_named():
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0, 1, (30, 2))
+    real = TSP.from_coords(xy)
+    assert not real.integer and 0.0 < float(real.dist[0, 1]) < 1.5
+    tsplib = TSP.from_coords(xy, metric="EUC_2D")
+    assert tsplib.integer and set(np.unique(np.asarray(tsplib.dist))) <= {0.0, 1.0}
+    tour = np.arange(30)
+    want = sum(np.hypot(*(xy[i] - xy[(i + 1) % 30])) for i in range(30))
+    assert abs(real.evaluate(tour[None])[0] - want) < 1e-5 * want
+
+
+def test_long_integer_tours_are_exact():
+    """Integer edges summing past 2**24: float32 sums are off; the int32 path is exact."""
+    rng = np.random.default_rng(1)
+    n = 60
+    d = rng.integers(500_000, 1_000_000, (n, n))
+    d = np.triu(d, 1)
+    d = d + d.T
+    p = TSP.from_distance_matrix(d)
+    tours = np.stack([rng.permutation(n) for _ in range(50)]).astype(np.int32)
+    exact = np.array([d[t, np.roll(t, -1)].sum() for t in tours])
+    assert exact.min() > 2**24
+    np.testing.assert_array_equal(p.evaluate(tours), exact)  # host: float64, exact
+    import jax
+
+    traced = np.asarray(jax.jit(lambda q, t: q.evaluate(t))(p, tours), np.float64)
+    np.testing.assert_array_equal(traced, exact.astype(np.float32))  # int32 sum, rounded once
+    res = ea.minimize(p, GraphEACO(num_ants=4, local_search="none"), seed=0, iterations=3)
+    t = res.best_solution
+    assert res.best_cost == d[t, np.roll(t, -1)].sum()
+
+
+def test_host_evaluate_refuses_non_tours():
+    p = load_tsplib("eil51")
+    with pytest.raises(ProblemError, match=r"shape \(m, 51\)"):
+        p.evaluate(np.arange(50)[None])
+    with pytest.raises(ProblemError, match="outside 0..50"):
+        p.evaluate(np.r_[np.arange(50), 51][None])
+    with pytest.raises(ProblemError, match="permutation"):
+        p.evaluate(np.r_[np.arange(50), 0][None])
+    with pytest.raises(ProblemError, match="2\\*\\*24"):
+        TSP.from_distance_matrix(np.array([[0, 2**25, 1], [2**25, 0, 1], [1, 1, 0]]))
+
+
+def test_huge_dimension_refused_before_allocating(tmp_path):
+    f = tmp_path / "huge.tsp"
+    f.write_text("NAME: huge\nTYPE: TSP\nDIMENSION: 2000000000\nEDGE_WEIGHT_TYPE: EUC_2D\n"
+                 "NODE_COORD_SECTION\n1 0 0\n2 1 1\n3 2 2\nEOF\n")
+    with pytest.raises(ProblemError, match="DIMENSION 2000000000 needs"):
+        load_tsplib(str(f))
+    folder = tmp_path / "folder.tsp"
+    folder.mkdir()
+    with pytest.raises(ProblemError, match="is a directory"):
+        load_tsplib(str(folder))
+
+
+# --------------------------------------------------------------------------- item 1: budgets
+@pytest.mark.parametrize("budget", [300, 1000])
+def test_max_evaluations_is_a_hard_cap_with_repair_and_refinement(budget):
+    problem = ea.problems.cec2006("g06")
+    s = ContinuousEACO(num_ants=10, archive_size=12)
+    res = ea.minimize(problem, s, seed=[0, 1], max_evaluations=budget)
+    assert np.all(res.evaluations <= budget)
+    assert np.all(res.evaluations > budget - s.max_charge(problem))
+    assert res.stop_reason == "max_evaluations" and res.max_evaluations == budget
+    assert res.history["best_cost"].shape[1] == res.iterations
+
+
+def test_budget_below_one_iteration_names_the_charge():
+    with pytest.raises(ConfigError, match="repair up to 3 x 20"):
+        ea.minimize(ea.problems.cec2006("g06"), max_evaluations=50)
+
+
+# --------------------------------------------------------------------------- item 2: feasibility
+def _vessel():
+    def f(x):
+        return (0.6224 * x[0] * x[2] * x[3] + 1.7781 * x[1] * x[2] ** 2
+                + 3.1661 * x[0] ** 2 * x[3] + 19.84 * x[0] ** 2 * x[2])
+
+    def g(x):
+        return jnp.stack([-x[0] + 0.0193 * x[2], -x[1] + 0.00954 * x[2],
+                          -jnp.pi * x[2] ** 2 * x[3] - 4.0 / 3.0 * jnp.pi * x[2] ** 3 + 1296000.0,
+                          x[3] - 240.0])
+
+    return ConstrainedProblem(f, g, lower=[0.0625, 0.0625, 10.0, 10.0],
+                              upper=[6.1875, 6.1875, 200.0, 200.0], name="vessel")
+
+
+def test_feasibility_is_rechecked_in_float64():
+    res = ea.minimize(_vessel(), seed=0, max_evaluations=4000)
+    assert res.precision == "float64"  # constraints: auto picks float64
+    assert res.tolerance == {"inequality": 0.0, "equality": 1e-4}
+    check = _vessel().host_check(res.x)
+    assert res.feasible == check["feasible"] and res.f == check["f"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r32 = ea.minimize(_vessel(), seed=0, max_evaluations=4000, precision="float32")
+    assert r32.precision == "float32"
+    truth = _vessel().host_check(r32.x)
+    assert bool(r32.feasible) == truth["feasible"] and float(r32.violation) == truth["violation"]
+    claimed = float(r32.state.best_violation) <= 0
+    warned = any("re-checked in float64" in str(w.message) for w in caught)
+    assert warned == (claimed and not truth["feasible"])
+
+
+def test_float64_problem_keeps_float64_outside_the_scope():
+    with ea.problems.float64():
+        p = ea.problems.cec2006("g06")
+    res = ea.minimize(p, seed=0, max_evaluations=500)
+    assert res.precision == "float64" and np.asarray(res.state.best_f).dtype == np.float64
+    with pytest.raises(ConfigError, match="holds float64 arrays"):
+        ea.minimize(p, seed=0, max_evaluations=500, precision="float32")
+
+
+def test_all_nan_objective_is_an_error_naming_it():
+    p = ConstrainedProblem(lambda x: jnp.nan * x[0], lower=[0.0, 0.0], upper=[1.0, 1.0],
+                           name="broken")
+    with pytest.raises(ProblemError, match="every evaluation of 'broken' returned NaN"):
+        ea.minimize(p, seed=0, iterations=4)
