@@ -137,3 +137,61 @@ def test_all_nan_objective_is_an_error_naming_it():
                            name="broken")
     with pytest.raises(ProblemError, match="every evaluation of 'broken' returned NaN"):
         ea.minimize(p, seed=0, iterations=4)
+
+
+# --------------------------------------------------------------------------- item 3: ranges
+@pytest.mark.parametrize("field, value", [("rho", 1.5), ("q0", 1.5), ("alpha", -1.0),
+                                          ("beta", float("nan")), ("use_chaos", 2)])
+def test_graph_params_outside_their_range_are_one_line(field, value):
+    s = GraphEACO(num_ants=4)
+    p = load_tsplib("burma14")
+    params = s.default_params(p).replace(**{field: value})
+    with pytest.raises(ConfigError, match=f"GraphParams.{field}=.* outside its range") as err:
+        ea.minimize(p, s, params=params, iterations=2)
+    assert "\n" not in str(err.value)
+    with pytest.raises(ConfigError, match=f"params\\[1\\]: GraphParams.{field}"):
+        ea.minimize(p, s, params=[s.default_params(p), params], iterations=2)
+
+
+def test_traced_params_stay_traced():
+    """init under vmap gets tracers: nothing is checked (or concretised) there."""
+    import jax
+
+    s, p = GraphEACO(num_ants=4), load_tsplib("burma14")
+    rhos = jnp.array([0.1, 0.2])
+    states = jax.vmap(lambda r: s.init(jax.random.key(0), p, s.default_params(p).replace(
+        rho=r)))(rhos)
+    np.testing.assert_allclose(states.params.rho, rhos)
+
+
+def _tsp_sweep(**extra):
+    return {"command": "tsp", "args": {"instance": "burma14", "ants": 4, "iterations": 2,
+                                       "local_search": "none"}, "seeds": 1, **extra}
+
+
+def test_sweep_cells_checked_against_ranges_naming_the_cell():
+    from eaco_jax.sweep import plan
+
+    with pytest.raises(ConfigError, match=r"sweep cell 1 \{\"q0\": 1.5\}: GraphParams.q0=1.5 "
+                                          r"is outside its range \[0, 1\]"):
+        plan(_tsp_sweep(cells=[{"q0": 0.5}, {"q0": 1.5}]))
+    with pytest.raises(ConfigError, match=r"unknown key\(s\) \['bogus_key'\]; valid: .*q0"):
+        plan(_tsp_sweep(cells=[{"bogus_key": 1}]))
+    with pytest.raises(ConfigError, match=r"sweep cell 0 .*q0='abc' is not a number"):
+        plan(_tsp_sweep(cells=[{"q0": "abc"}]))
+    with pytest.raises(ConfigError, match=r"sweep cell 0 .*ants='abc' must be an integer"):
+        plan(_tsp_sweep(cells=[{"ants": "abc"}]))
+
+
+def test_sweeping_an_unused_param_is_refused_naming_the_switch():
+    from eaco_jax.sweep import plan
+
+    with pytest.raises(ConfigError, match="'rho' has no effect in any cell: it acts only with "
+                                          "use_local_update or use_elitist"):
+        plan(_tsp_sweep(grid={"rho": [0.05, 0.2, 0.5]}))
+    kind, cells = plan(_tsp_sweep(grid={"rho": [0.05, 0.2]}, args={
+        "instance": "burma14", "ants": 4, "iterations": 2, "local_search": "none",
+        "use_elitist": True}))
+    assert len(cells) == 2 and all(c.params["use_elitist"] for c in cells)
+    with pytest.warns(UserWarning, match="'rho' has no effect in 2 of 4 cells"):
+        plan(_tsp_sweep(grid={"rho": [0.05, 0.2], "use_local_update": [False, True]}))
