@@ -65,3 +65,16 @@ for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
     if _info.name.startswith("_") or _info.name == "common":
         continue
     importlib.import_module(f"{__name__}.{_info.name}").register(app)
+
+
+def main() -> None:
+    """The ``eaco`` entry point: the app, with a bare Ctrl-C answered by one line."""
+    import os
+    import sys
+
+    try:
+        app()
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted\n")
+        sys.stderr.flush()
+        os._exit(130)

@@ -463,6 +463,8 @@ class RunCheckpointer:
         Returns whether it did."""
         if not (finished or force or self.due(done)):
             return False
+        if done == 0 or (force and done == self._last_done):
+            return False  # nothing run since the start or the last save
         self.save(state, done, merge_history(history, self.axis), finished)
         return True
 

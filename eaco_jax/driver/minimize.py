@@ -741,6 +741,8 @@ def run(
 def _interrupt_message(name: str, result: Result, done: int, total: int,
                        checkpointing: Checkpointing | None) -> str:
     head = f"interrupted ({name}) after {done} of {total} iterations"
+    if checkpointing is not None and done == 0:
+        return f"{head}; nothing to save yet (start the same command again)"
     if checkpointing is not None:
         where = Path(checkpointing.directory)
         info = checkpointing.run_info or {}
