@@ -13,7 +13,7 @@ from eaco_jax import problems, strategies
 from eaco_jax._version import __version__
 from eaco_jax.driver import stop
 from eaco_jax.driver.minimize import Checkpointing, Result, minimize
-from eaco_jax.errors import CheckpointError, ConfigError, ProblemError, UserError
+from eaco_jax.errors import CheckpointError, ConfigError, Interrupted, ProblemError, UserError
 from eaco_jax.problems.base import Evaluation
 from eaco_jax.strategies.base import State, Strategy
 
@@ -22,6 +22,7 @@ __all__ = [
     "Checkpointing",
     "ConfigError",
     "Evaluation",
+    "Interrupted",
     "ProblemError",
     "Result",
     "State",
