@@ -62,7 +62,7 @@ class State:
     """
 
     key: Array
-    params: PyTree
+    params: Any  # the strategy's Params pytree
     iteration: Array
     evaluations: Array
     best_solution: Array

@@ -17,7 +17,7 @@ the path analogue of 2-opt, applied to every ant when ``shortcut`` is on.
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
+from typing import Any, ClassVar  # noqa: F401  (Any: the State annotations, for pdoc)
 
 import jax
 import jax.numpy as jnp
