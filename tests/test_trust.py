@@ -195,3 +195,31 @@ def test_sweeping_an_unused_param_is_refused_naming_the_switch():
     assert len(cells) == 2 and all(c.params["use_elitist"] for c in cells)
     with pytest.warns(UserWarning, match="'rho' has no effect in 2 of 4 cells"):
         plan(_tsp_sweep(grid={"rho": [0.05, 0.2], "use_local_update": [False, True]}))
+
+
+# --------------------------------------------------------------------------- the command line
+def test_cli_version_info_params_and_budget_flags(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from eaco_jax.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["--version"])
+    assert res.exit_code == 0 and res.output.strip() == f"eaco_jax {ea.__version__}"
+    res = runner.invoke(app, ["info", "--json"])
+    info = json.loads(res.output.strip().splitlines()[-1])
+    assert info["eaco_jax"] == ea.__version__ and info["devices"]
+    res = runner.invoke(app, ["--no-compile-cache", "tsp", "burma14", "--ants", "4",
+                              "--local-search", "none", "--max-evaluations", "30", "--json",
+                              "--params", "use_elitist=true,rho=0.3"])
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.output.strip().splitlines()[-1])
+    assert record["evaluations"] <= 30 and record["stop_reason"] == "max_evaluations"
+    for bad, needle in ((["--seed", "99999999999999999999"], "outside its range 0..4294967295"),
+                        (["--params", "q0=2"], "GraphParams.q0=2.0 is outside its range"),
+                        (["--ants", "1000000000"], "the colony state needs")):
+        res = runner.invoke(app, ["tsp", "eil51", *bad])
+        assert res.exit_code == 2 and needle in res.output, res.output
+        assert "Traceback" not in res.output
