@@ -28,13 +28,16 @@ second process from writing the same folder. Mismatched runs and incompatible ve
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
 import os
 import shutil
+import sys
 import time
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -228,7 +231,43 @@ def all_steps(directory: str | Path) -> list[int]:
     directory = Path(directory)
     if not directory.is_dir():
         return []
-    return sorted(_manager(directory, None, read_only=True).all_steps(), reverse=True)
+    with _quiet_logs():  # orbax logs an ERROR for a step whose own metadata is garbled
+        return sorted(_manager(directory, None, read_only=True).all_steps(), reverse=True)
+
+
+@contextlib.contextmanager
+def _quiet_logs() -> Iterator[None]:
+    """Silence orbax's (absl) and asyncio's error logs while a possibly corrupt step is read:
+    a corrupt step is reported as one warning line, not dozens of logged tracebacks."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in ("absl", "asyncio", "orbax")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL)
+    # tensorstore's callbacks print "Event loop is closed" tracebacks straight to fd 2 after a
+    # failed read; they are noise here (the failure itself becomes one warning line)
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    failed = False
+    try:
+        yield
+    except BaseException:
+        failed = True
+        raise
+    finally:
+        if failed:
+            import gc
+
+            time.sleep(0.3)  # let the failed read's callbacks finish while fd 2 is quiet
+            gc.collect()  # and its abandoned coroutines be collected (they print when they are)
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+        for lg, level in zip(loggers, levels, strict=True):
+            lg.setLevel(level)
 
 
 class _Corrupt(Exception):
@@ -239,14 +278,23 @@ def _read_step_meta(directory: Path, step: int) -> dict[str, Any]:
     import orbax.checkpoint as ocp
 
     try:
-        out = _manager(directory, None, read_only=True).restore(
-            step, args=ocp.args.Composite(meta=ocp.args.JsonRestore()))
+        with _quiet_logs():
+            out = _manager(directory, None, read_only=True).restore(
+                step, args=ocp.args.Composite(meta=ocp.args.JsonRestore()))
         meta = dict(out["meta"])
     except Exception as err:  # noqa: BLE001 - orbax raises many types for unreadable files
         raise _Corrupt(f"its metadata does not read back ({type(err).__name__})") from None
     if "config" not in meta or "done" not in meta:
         raise _Corrupt("it has no run metadata")
+    stored = meta.pop("meta_digest", None)
+    if stored is not None and stored != _meta_digest(meta):
+        raise _Corrupt("its metadata does not match the digest saved with it")
     return meta
+
+
+def _meta_digest(meta: dict[str, Any]) -> str:
+    text = json.dumps(meta, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
 def read_meta(directory: str | Path) -> dict[str, Any]:
@@ -392,6 +440,10 @@ class RunCheckpointer:
             f"{target} and falling back to the previous step", stacklevel=4)
 
     def _read(self, step: int, template: Any) -> Restored:
+        with _quiet_logs():
+            return self._read_unquiet(step, template)
+
+    def _read_unquiet(self, step: int, template: Any) -> Restored:
         import orbax.checkpoint as ocp
 
         meta = _read_step_meta(self.directory, step)
@@ -484,6 +536,7 @@ class RunCheckpointer:
             saved_at=time.time(),
             writer=f"eaco_jax {__version__}",
         )
+        meta["meta_digest"] = _meta_digest(meta)
         mgr = self._writer()
         if done in mgr.all_steps():  # e.g. the final save of a run resumed at its last step
             return
