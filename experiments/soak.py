@@ -62,6 +62,16 @@ def _disk_mb(folder: Path) -> float:
     return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 2**20
 
 
+def _steady(samples: list[dict], cycles: list[dict]) -> list[float] | None:
+    """RSS of the last (longest-lived) process: [first, last, max] after its first quarter."""
+    if not cycles:
+        return None
+    span = cycles[-1]["alive_s"]
+    last = [x["rss_mb"] for x in samples if x["t"] >= samples[-1]["t"] - span + span / 4]
+    last = [v for v in last if v > 0]
+    return [last[0], last[-1], max(last)] if last else None
+
+
 def _spawn(args: argparse.Namespace, directory: str, result: Path) -> subprocess.Popen:
     cmd = [sys.executable, __file__, "--child", "--dir", directory, "--result", str(result),
            "--instance", args.instance, "--ants", str(args.ants), "--iterations",
@@ -91,6 +101,8 @@ def parent(args: argparse.Namespace) -> dict:
         proc = _spawn(args, str(ck), result)
         wait = rng.uniform(args.min_kill, args.max_kill)
         born = time.time()
+        if born + wait > deadline:
+            wait = float("inf")  # past the soak time: sample until the run finishes
         peak = 0.0
         while proc.poll() is None and time.time() - born < wait:
             rss = _rss_mb(proc.pid)
@@ -125,6 +137,7 @@ def parent(args: argparse.Namespace) -> dict:
         "soak_seconds": round(time.time() - t_start - unbroken_seconds, 1),
         "identical_to_unbroken": same,
         "peak_rss_mb_first_last_max": [peaks[0], peaks[-1], max(peaks)] if peaks else None,
+        "last_cycle_rss_mb_after_warmup": _steady(samples, cycles),
         "max_steps_on_disk": max(len(c["steps"]) for c in cycles),
         "max_disk_mb": max(c["disk_mb"] for c in cycles),
         "tmp_leftovers_at_end": leftovers,
@@ -142,8 +155,8 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=200_000)
     ap.add_argument("--every", type=int, default=500, help="iterations between checkpoints")
     ap.add_argument("--keep", type=int, default=3)
-    ap.add_argument("--min-kill", type=float, default=8.0)
-    ap.add_argument("--max-kill", type=float, default=40.0)
+    ap.add_argument("--min-kill", type=float, default=20.0)
+    ap.add_argument("--max-kill", type=float, default=60.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--work", default="out/soak")
     ap.add_argument("--out", default=None, help="write the JSON record here")
