@@ -121,7 +121,7 @@ def one_line_error(args: list[str]) -> str:
 def test_bad_input_is_a_one_line_error(tmp_path):
     assert "unknown robot 'robo'" in one_line_error(["gait", "--robot", "robo", "--json"])
     assert "backend='gpu' is not one of" in one_line_error(["gait", "--backend", "gpu"])
-    assert "ants must be an integer >= 1" in one_line_error(["gait", "--ants", "0"])
+    assert "ants=0 is outside its range 1..2147483647" in one_line_error(["gait", "--ants", "0"])
     assert "does not exist" in one_line_error(["gait-eval", str(tmp_path / "none.json")])
     assert "does not exist" in one_line_error(
         ["gait", "--init", str(tmp_path / "none.json"), "--iterations", "1"])

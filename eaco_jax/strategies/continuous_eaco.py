@@ -101,7 +101,7 @@ class ContinuousParams:
         "p_mutation": UNIT, "laplace_a": Range(), "laplace_b": POSITIVE,
         "power_index": POSITIVE, "penalty": NONNEG, "eps_fraction": UNIT,
         "eps_cutoff": POSITIVE, "eps_exponent": POSITIVE, "chaos_rate": UNIT,
-        "chaos_strength": UNIT, "chaos_patience": NONNEG, "restart_patience": AT_LEAST_ONE,
+        "chaos_strength": NONNEG, "chaos_patience": NONNEG, "restart_patience": AT_LEAST_ONE,
         "p_repair": UNIT, "repair_margin": NONNEG, "refine_active": NONNEG,
     }
 
