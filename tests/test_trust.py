@@ -223,3 +223,20 @@ def test_cli_version_info_params_and_budget_flags(tmp_path):
         res = runner.invoke(app, ["tsp", "eil51", *bad])
         assert res.exit_code == 2 and needle in res.output, res.output
         assert "Traceback" not in res.output
+
+
+def test_capped_run_checkpoints_resume_cleanly(tmp_path):
+    """The last, budget-cut chunk is saved with the iterations that ran: the finished run
+    restores as finished (no 'corrupt' fallback) and equals an unbroken one."""
+    problem, s = ea.problems.cec2006("g06"), ContinuousEACO(num_ants=10, archive_size=12)
+    kw = dict(seed=[0, 1], max_evaluations=700, chunk_size=7)
+    unbroken = ea.minimize(problem, s, **kw)
+    ck = ea.Checkpointing(tmp_path, every=7)
+    first = ea.minimize(problem, s, checkpointing=ck, **kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        again = ea.minimize(problem, s, checkpointing=ck, **kw)
+    for r in (first, again):
+        np.testing.assert_array_equal(r.best_cost, unbroken.best_cost)
+        np.testing.assert_array_equal(r.evaluations, unbroken.evaluations)
+        assert r.iterations == unbroken.iterations

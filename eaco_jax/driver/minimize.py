@@ -701,7 +701,10 @@ def run(
                 state, hist = compiled(*args)
                 jax.block_until_ready(state)
                 run_seconds += time.perf_counter() - t0
-                history.append(_trim(jax.device_get(hist), length, batched))
+                chunk_hist = _trim(jax.device_get(hist), length, batched)
+                history.append(chunk_hist)
+                if capped and chunk_hist:  # the iterations any row ran (rows stop on budget)
+                    length = next(iter(chunk_hist.values())).shape[1 if batched else 0]
                 done += length
                 _check_nan(history, problem, strategy, batched)
                 if bar is not None:
