@@ -219,13 +219,14 @@ def main() -> None:
 
     def flip() -> str:
         shutil.rmtree(ck / "20")
-        arrays = [p for p in (ck / "15" / "state").rglob("*") if p.is_file() and
-                  p.parent.name == "d"]
+        # the step's merged array data (state/d/*; the per-process copies are not read)
+        arrays = sorted(p for p in (ck / "15" / "state" / "d").iterdir() if p.is_file())
         data = bytearray(arrays[0].read_bytes())
         data[len(data) // 2] ^= 1
         arrays[0].write_bytes(bytes(data))
         r = run_ck(every=5, keep=5)
-        return f"resumed from the previous step; iterations={r.iterations}"
+        moved = [p.name for p in (ck / "corrupt").iterdir()] if (ck / "corrupt").exists() else []
+        return f"iterations={r.iterations}; moved aside: {moved}"
     record("one flipped byte in the newest checkpoint", "API", flip)
 
     def locked() -> object:

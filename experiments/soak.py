@@ -59,7 +59,20 @@ def _rss_mb(pid: int) -> float | None:
 
 
 def _disk_mb(folder: Path) -> float:
-    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 2**20
+    """Bytes under ``folder`` in MiB (orbax renames folders while it writes: retry)."""
+    for _ in range(5):
+        try:
+            total = 0
+            for root, _dirs, files in os.walk(folder):
+                for name in files:
+                    try:
+                        total += (Path(root) / name).stat().st_size
+                    except FileNotFoundError:
+                        continue
+            return total / 2**20
+        except FileNotFoundError:
+            time.sleep(0.05)
+    return float("nan")
 
 
 def _steady(samples: list[dict], cycles: list[dict]) -> list[float] | None:
