@@ -90,7 +90,8 @@ def _spawn(args: argparse.Namespace, directory: str, result: Path) -> subprocess
            "--instance", args.instance, "--ants", str(args.ants), "--iterations",
            str(args.iterations), "--every", str(args.every), "--keep", str(args.keep),
            "--cache", args.cache]
-    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    log = open(Path(args.work) / "child.log", "a")  # noqa: SIM115 - a file, never a full pipe
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=log, text=True)
 
 
 def parent(args: argparse.Namespace) -> dict:
@@ -103,9 +104,9 @@ def parent(args: argparse.Namespace) -> dict:
     ref_file = work / "unbroken.json"
     t0 = time.time()
     ref = _spawn(args, "", ref_file)
-    ref_err = ref.communicate()[1]
+    ref.wait()
     if ref.returncode != 0:
-        raise SystemExit(f"unbroken run failed:\n{ref_err}")
+        raise SystemExit(f"unbroken run failed: see {work / 'child.log'}")
     unbroken_seconds = time.time() - t0
     kills, samples, cycles = 0, [], []
     result = work / "soak.json"
@@ -132,7 +133,7 @@ def parent(args: argparse.Namespace) -> dict:
         elif not finished:
             proc.wait()  # past the soak time: let it finish
         if proc.returncode not in (0, -signal.SIGKILL):
-            raise SystemExit(f"child failed ({proc.returncode}):\n{proc.stderr.read()}")
+            raise SystemExit(f"child failed ({proc.returncode}): see {work / 'child.log'}")
         steps = sorted(int(p.name) for p in ck.iterdir() if p.name.isdigit()) if ck.exists() \
             else []
         cycles.append({"alive_s": round(time.time() - born, 1), "peak_rss_mb": round(peak, 1),
