@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-all lint bench clean docs
+.PHONY: demo test test-all lint bench clean docs docs-api
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,15 @@ test-all: $(STAMP)
 
 docs: $(STAMP)
 	$(BIN)/python docs/generate.py
+
+# the API reference from the docstrings (pdoc) into docs/api/; any pdoc warning fails the target
+API_MODULES := eaco_jax eaco_jax.driver eaco_jax.ops eaco_jax.runs eaco_jax.sweep eaco_jax.cli \
+               eaco_jax.gait eaco_jax.errors eaco_jax.outputs eaco_jax.plots
+docs-api: $(STAMP)
+	rm -rf docs/api
+	JAX_PLATFORMS=cpu $(BIN)/python -m pdoc -o docs/api --docformat google $(API_MODULES) \
+	  2> docs/api.log; status=$$?; cat docs/api.log; \
+	  test $$status -eq 0 && ! grep -q "Warn" docs/api.log
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

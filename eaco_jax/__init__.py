@@ -9,19 +9,28 @@ Layers, each importing only those below it: ``problems`` <- ``strategies`` <- ``
 (``minimize``, stop rules, ``Checkpointing``) <- ``runs`` <- ``cli`` and ``sweep``.
 """
 
-from eaco_jax import problems, strategies
-from eaco_jax._version import __version__
-from eaco_jax.driver import stop
-from eaco_jax.driver.minimize import Checkpointing, Result, minimize
-from eaco_jax.errors import CheckpointError, ConfigError, ProblemError, UserError
-from eaco_jax.problems.base import Evaluation
-from eaco_jax.strategies.base import State, Strategy
+import os as _os
+import sys as _sys
+
+if _os.path.basename(_sys.argv[0] if _sys.argv else "") in ("eaco", "-m"):
+    # the `eaco` command: jaxlib logs two false "machine feature not supported" errors per
+    # program it loads from the persistent compilation cache; keep stderr to what we say
+    _os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+
+from eaco_jax import problems, strategies  # noqa: E402
+from eaco_jax._version import __version__  # noqa: E402
+from eaco_jax.driver import stop  # noqa: E402
+from eaco_jax.driver.minimize import Checkpointing, Result, minimize  # noqa: E402
+from eaco_jax.errors import CheckpointError, ConfigError, Interrupted, ProblemError, UserError  # noqa: E402
+from eaco_jax.problems.base import Evaluation  # noqa: E402
+from eaco_jax.strategies.base import State, Strategy  # noqa: E402
 
 __all__ = [
     "CheckpointError",
     "Checkpointing",
     "ConfigError",
     "Evaluation",
+    "Interrupted",
     "ProblemError",
     "Result",
     "State",

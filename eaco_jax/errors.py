@@ -21,3 +21,18 @@ class ConfigError(UserError):
 
 class CheckpointError(UserError):
     """A checkpoint cannot be used for this run (another run, corrupt, other format)."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT / SIGTERM stopped a run; ``result`` holds what it had found (or None).
+
+    A ``KeyboardInterrupt``, so code that stops on Ctrl-C still does; the command line
+    prints its message as one line (exit code 130).
+    """
+
+    def __init__(self, message: str, result: object = None) -> None:
+        super().__init__(message)
+        self.result = result
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else "interrupted"

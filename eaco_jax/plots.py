@@ -1,19 +1,28 @@
 """Figures users expect: convergence curves, tours, joint-angle trajectories.
 
-All functions write a PNG (matplotlib, Agg backend, no display needed) and return its path.
-Histories with a leading seed axis are drawn as the median with a min-max band.
+Every function draws one matplotlib figure: given a ``path`` it writes a PNG there, closes
+the figure and returns the path; without one (``path=None``) it returns the
+:class:`matplotlib.figure.Figure` (a notebook shows it). Outside Jupyter the Agg backend is used,
+so no display is needed. Histories with a leading seed axis are drawn as the median with a
+min-max band.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
-matplotlib.use("Agg")
+if "ipykernel" not in sys.modules:  # a notebook keeps its inline backend
+    matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+#: what the plot functions return: the PNG's path, or the figure when no path is given
+Drawn = Any
 
 
 def subplots(*args, **kwargs):
@@ -23,10 +32,36 @@ def subplots(*args, **kwargs):
 
 def save_figure(fig: plt.Figure, path: str | Path) -> Path:
     """Write ``fig`` as PNG at ``path`` (folders created) and close it."""
+    return _save(fig, Path(path))
+
+
+def sweep_summary(table: Any, key: str = "best_cost", by: str = "cell",
+                  path: str | Path | None = None, title: str = "sweep") -> Drawn:
+    """Box plot of ``key`` over seeds for every ``by`` value of a sweep table (the rows of
+    ``OUT/table.json``, a list of dicts, or its path)."""
+    import json
+
+    if isinstance(table, str | Path):
+        table = json.loads(Path(table).read_text())["rows"]
+    groups: dict[str, list[float]] = {}
+    for row in table:
+        value = row.get(key)
+        if value is not None and np.isfinite(value):
+            groups.setdefault(str(row.get(by)), []).append(float(value))
+    fig, ax = plt.subplots(figsize=(max(5.0, 0.6 * len(groups) + 2), 4.0))
+    ax.boxplot(list(groups.values()) or [[np.nan]])
+    ax.set_xticks(range(1, len(groups) + 1), list(groups), rotation=45, ha="right", fontsize=8)
+    ax.set_xlabel(by)
+    ax.set_ylabel(f"{key} over seeds")
+    ax.set_title(title)
     return _save(fig, path)
 
 
-def _save(fig: plt.Figure, path: str | Path) -> Path:
+def _save(fig: plt.Figure, path: str | Path | None) -> Drawn:
+    if path is None:
+        fig.tight_layout()
+        plt.close(fig)  # not shown twice in notebooks; the returned figure still displays
+        return fig
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
@@ -37,14 +72,14 @@ def _save(fig: plt.Figure, path: str | Path) -> Path:
 
 def convergence(
     history: Mapping[str, np.ndarray],
-    path: str | Path,
+    path: str | Path | None = None,
     *,
     title: str = "Convergence",
     ylabel: str = "cost",
     optimum: float | None = None,
     keys: Sequence[str] = ("best_cost", "iter_mean_cost"),
     evaluations_per_iteration: int | None = None,
-) -> Path:
+) -> Drawn:
     """Best-so-far (and iteration mean) cost against iterations or evaluations."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for key in keys:
@@ -73,8 +108,9 @@ def convergence(
 
 
 def tour(
-    coords: np.ndarray, order: np.ndarray, path: str | Path, *, title: str = "Tour"
-) -> Path:
+    coords: np.ndarray, order: np.ndarray, path: str | Path | None = None, *,
+    title: str = "Tour",
+) -> Drawn:
     """A closed tour over 2-D city coordinates."""
     coords = np.asarray(coords, dtype=float)
     closed = np.append(np.asarray(order), order[0])
@@ -91,11 +127,11 @@ def tour(
 def joint_trajectories(
     time: np.ndarray,
     angles: Mapping[str, np.ndarray],
-    path: str | Path,
+    path: str | Path | None = None,
     *,
     title: str = "Joint angles",
     groups: Sequence[str] = ("Hip", "Knee", "Ankle"),
-) -> Path:
+) -> Drawn:
     """Joint angles (degrees) against time, one panel per joint group (the paper's Figs. 3, 10).
 
     ``angles`` maps joint names (e.g. ``LHipPitch``) to radians over ``time``; a joint goes to
@@ -119,11 +155,11 @@ def joint_trajectories(
 def planned_path(
     obstacles: Sequence[Sequence[Sequence[float]]],
     waypoints: np.ndarray,
-    path: str | Path,
+    path: str | Path | None = None,
     *,
     title: str = "Planned path",
     optimal: np.ndarray | None = None,
-) -> Path:
+) -> Drawn:
     """Obstacles (filled polygons), the planned path and, if given, the optimal one."""
     from matplotlib.patches import Polygon
 
@@ -145,11 +181,11 @@ def planned_path(
 
 def constrained_convergence(
     history: Mapping[str, np.ndarray],
-    path: str | Path,
+    path: str | Path | None = None,
     *,
     f_star: float | None = None,
     title: str = "Convergence",
-) -> Path:
+) -> Drawn:
     """Best feasible objective (or its error f - f*, log scale) against evaluations."""
     evals = np.asarray(history["evaluations"])
     best = np.asarray(history["best_f"], dtype=np.float64)

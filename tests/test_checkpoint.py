@@ -45,7 +45,7 @@ def _same(a, b):
 
 def _fingerprint(folder: Path) -> dict:
     return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+            for p in sorted(folder.rglob("*")) if p.is_file() and p.name != ".lock"}
 
 
 def _steps(folder: Path) -> list[int]:
@@ -112,7 +112,6 @@ def test_target_stop_is_remembered(tmp_path):
         (dict(strategy=RandomSearch(num_ants=9)), "config fields"),
         (dict(iterations=40), "config total"),
         (dict(seed=7), "config seeds"),
-        (dict(chunk_size=6), "config chunk"),
         (dict(params="scaled"), "config params_hash"),
     ],
 )
@@ -143,26 +142,92 @@ def test_incompatible_version_refused(tmp_path, monkeypatch):
     assert _fingerprint(tmp_path) == before
 
 
-@pytest.mark.parametrize("damage", ["truncate", "garble", "meta"])
-def test_corrupt_checkpoint_refused_and_untouched(tmp_path, damage):
-    _run(tmp_path, checkpoint_every=10)
-    last = tmp_path / "30"
+def _damage(step_dir: Path, damage: str) -> None:
     if damage == "meta":
-        target = last / "meta" / "metadata"
+        target = step_dir / "meta" / "metadata"
         target.write_text(target.read_text()[:20])
-    else:
-        arrays = [p for p in (last / "state").rglob("*")
-                  if p.is_file() and p.parent.name == "d"]
-        assert arrays
-        for target in arrays:
-            data = target.read_bytes()
-            target.write_bytes(data[: len(data) // 2] if damage == "truncate"
-                               else bytes(b ^ 0x5A for b in data))
-    before = _fingerprint(tmp_path)
-    with pytest.raises(CheckpointError, match="corrupt") as err:
-        _run(tmp_path, checkpoint_every=10)
-    assert "\n" not in str(err.value)
-    assert _fingerprint(tmp_path) == before
+        return
+    arrays = [p for p in (step_dir / "state").rglob("*") if p.is_file() and p.parent.name == "d"]
+    assert arrays
+    for target in arrays:
+        data = bytearray(target.read_bytes())
+        if damage == "truncate":
+            data = data[: len(data) // 2]
+        elif damage == "garble":
+            data = bytearray(b ^ 0x5A for b in data)
+        else:  # one flipped bit in the middle of the file
+            data[len(data) // 2] ^= 0x01
+        target.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garble", "meta", "flip"])
+def test_corrupt_step_moved_aside_and_resume_falls_back(tmp_path, damage):
+    """The newest step damaged: a warning, the step moved to corrupt/ (not deleted), the run
+    continues from the previous step and ends bit-identical to an unbroken run."""
+    unbroken = _run(tmp_path / "ref", checkpoint_every=10, keep=5)
+    ck = tmp_path / "ck"
+    _run(ck, iterations=30, checkpoint_every=10, keep=5)
+    shutil.rmtree(ck / "30")
+    _damage(ck / "20", damage)
+    with pytest.warns(UserWarning, match="step 20 .* corrupt"):
+        resumed = _run(ck, checkpoint_every=10, keep=5)
+    _same(unbroken, resumed)
+    moved = list((ck / "corrupt").iterdir())
+    assert len(moved) == 1 and moved[0].name.startswith("20-")
+    assert _steps(ck) == [10, 20, 30]
+
+
+def test_every_step_corrupt_is_one_line(tmp_path):
+    _run(tmp_path, iterations=10, checkpoint_every=10)
+    _damage(tmp_path / "10", "flip")
+    with pytest.warns(UserWarning), pytest.raises(CheckpointError, match="every checkpoint"):
+        _run(tmp_path, iterations=10, checkpoint_every=10)
+    assert (tmp_path / "corrupt").is_dir()
+
+
+def test_second_run_on_one_folder_is_refused(tmp_path):
+    from eaco_jax.driver.checkpoint import _Lock
+
+    holder = _Lock(tmp_path)
+    tmp_path.mkdir(exist_ok=True)
+    holder.acquire()
+    try:
+        with pytest.raises(CheckpointError, match="in use by another run"):
+            _run(tmp_path, checkpoint_every=10)
+    finally:
+        holder.release()
+    _run(tmp_path, checkpoint_every=10)  # free again
+
+
+def test_save_frequency_is_not_identity_and_saves_land_on_multiples(tmp_path):
+    unbroken = _run(tmp_path / "ref", iterations=30, chunk_size=7)
+    ck = tmp_path / "ck"
+    _run(ck, iterations=30, chunk_size=7, checkpoint_every=5, keep=10)
+    assert _steps(ck) == [5, 10, 15, 20, 25, 30]
+    for step in (30, 25, 20):
+        shutil.rmtree(ck / str(step))
+    # resumed with another checkpoint interval (and chunk size): accepted, same result
+    _same(unbroken, _run(ck, iterations=30, chunk_size=4, checkpoint_every=10, keep=10))
+    assert _steps(ck) == [5, 10, 15, 20, 30]
+
+
+def test_unwritable_checkpoint_folder_is_one_line(tmp_path):
+    import os
+
+    blocked = tmp_path / "ro"
+    blocked.mkdir()
+    os.chmod(blocked, 0o500)
+    try:
+        if os.access(blocked, os.W_OK):
+            pytest.skip("running as a user who can write anywhere")
+        with pytest.raises(CheckpointError, match="not writable"):
+            _run(blocked / "ck", checkpoint_every=10)
+    finally:
+        os.chmod(blocked, 0o700)
+    afile = tmp_path / "file"
+    afile.write_text("x")
+    with pytest.raises(CheckpointError, match="is a file"):
+        _run(afile, checkpoint_every=10)
 
 
 def test_half_written_step_is_ignored(tmp_path):

@@ -75,7 +75,8 @@ def test_gait_output_files(native_run):
     if video.exists():
         assert video.stat().st_size > 1000 and rec["files"]["video"] == str(video)
     else:
-        assert "video skipped" in res.stderr and rec["files"]["video"] is None
+        assert ("video skipped" in res.stderr or "no video by default" in res.stderr) and (
+            rec["files"]["video"] is None)
 
 
 def test_gait_eval_round_trip(native_run, tmp_path):
@@ -120,7 +121,7 @@ def one_line_error(args: list[str]) -> str:
 def test_bad_input_is_a_one_line_error(tmp_path):
     assert "unknown robot 'robo'" in one_line_error(["gait", "--robot", "robo", "--json"])
     assert "backend='gpu' is not one of" in one_line_error(["gait", "--backend", "gpu"])
-    assert "ants must be an integer >= 1" in one_line_error(["gait", "--ants", "0"])
+    assert "ants=0 is outside its range 1..2147483647" in one_line_error(["gait", "--ants", "0"])
     assert "does not exist" in one_line_error(["gait-eval", str(tmp_path / "none.json")])
     assert "does not exist" in one_line_error(
         ["gait", "--init", str(tmp_path / "none.json"), "--iterations", "1"])

@@ -25,6 +25,7 @@ LAYERS = {
     "eaco_jax.runs": 6,
     "eaco_jax.sweep": 7,
     "eaco_jax.cli": 8,
+    "eaco_jax.__main__": 8,  # `python -m eaco_jax` runs the command line
 }
 
 

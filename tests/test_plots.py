@@ -24,3 +24,16 @@ def test_tour_and_joint_plots(tmp_path):
     angles = {"LHipPitch": np.sin(t), "RKneePitch": np.cos(t), "LAnklePitch": 0.1 * t}
     q = plots.joint_trajectories(t, angles, tmp_path / "joints.png")
     assert q.read_bytes()[:8] == PNG and q.stat().st_size > 5000
+
+
+def test_without_a_path_the_figure_is_returned(tmp_path):
+    import matplotlib.figure
+
+    h = {"best_cost": np.linspace(10, 1, 30)}
+    fig = plots.convergence(h)
+    assert isinstance(fig, matplotlib.figure.Figure) and fig.axes[0].lines
+    rows = [{"cell": c, "seed": s, "best_cost": float(c == "a") + s} for c in "ab"
+            for s in range(3)]
+    fig = plots.sweep_summary(rows)
+    assert isinstance(fig, matplotlib.figure.Figure)
+    assert plots.sweep_summary(rows, path=tmp_path / "s.png").read_bytes()[:8] == PNG

@@ -24,9 +24,9 @@ def test_load_bundled_and_evaluate_matches_exact_length():
     assert p.dist.dtype == jnp.float32 and p.neighbors.shape == (51, 10)
     rng = np.random.default_rng(0)
     tours = np.stack([rng.permutation(51) for _ in range(4)]).astype(np.int32)
-    got = np.asarray(p.evaluate(tours))
+    got = np.asarray(p.evaluate(tours))  # from the host: checked tours, exact float64
     want = [tour_length(np.asarray(p.dist), t) for t in tours]
-    assert got.dtype == np.float32 and got.shape == (4,)
+    assert got.dtype == np.float64 and got.shape == (4,)
     np.testing.assert_array_equal(got, want)
     # jit with the problem as an argument (pytree) and vmap over a batch of batches
     f = jax.jit(lambda prob, t: prob.evaluate(t))
@@ -63,7 +63,9 @@ def test_neighbors_are_sorted_nearest_without_self():
 def test_from_coords_and_metric_validation():
     xy = np.array([[0, 0], [3, 4], [6, 8], [0, 8]], float)
     p = TSP.from_coords(xy, name="sq", neighbors=50)
-    assert p.neighbors.shape == (4, 3) and float(p.dist[0, 1]) == 5.0
+    assert p.neighbors.shape == (4, 3) and float(p.dist[0, 1]) == 5.0 and p.integer
+    q = TSP.from_coords(xy + [[0.0, 0.25], [0, 0], [0, 0], [0, 0]])
+    assert not q.integer and float(q.dist[0, 1]) == np.float32(np.hypot(3.0, 3.75))
     with pytest.raises(ProblemError, match="metric"):
         TSP.from_coords(xy, metric="MAN_2D")
     with pytest.raises(ProblemError, match=r"shape \(n, 2\)"):

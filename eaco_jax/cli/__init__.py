@@ -20,7 +20,61 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
+def _version(value: bool) -> None:
+    if value:
+        from eaco_jax._version import __version__
+
+        typer.echo(f"eaco_jax {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                 help="print the version and exit"),
+    compile_cache: bool = typer.Option(
+        True, "--compile-cache/--no-compile-cache",
+        help="JAX's persistent compilation cache (a repeated or resumed run does not compile "
+             "again); folder: $EACO_COMPILE_CACHE or ~/.cache/eaco_jax/jax"),
+) -> None:
+    """Enhanced elitist-mutated ant colony optimisation: TSP, constrained problems, gaits."""
+    if compile_cache:
+        enable_compile_cache()
+
+
+def enable_compile_cache(folder: str | None = None) -> str:
+    """Turn on JAX's persistent compilation cache (every compiled program is kept on disk)."""
+    import os
+    from pathlib import Path
+
+    import jax
+
+    path = folder or os.environ.get("EACO_COMPILE_CACHE") or str(
+        Path.home() / ".cache" / "eaco_jax" / "jax")
+    try:
+        Path(path).mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return ""  # an unwritable home: run without the cache
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    return path
+
+
 for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
     if _info.name.startswith("_") or _info.name == "common":
         continue
     importlib.import_module(f"{__name__}.{_info.name}").register(app)
+
+
+def main() -> None:
+    """The ``eaco`` entry point: the app, with a bare Ctrl-C answered by one line."""
+    import os
+    import sys
+
+    try:
+        app()
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted\n")
+        sys.stderr.flush()
+        os._exit(130)

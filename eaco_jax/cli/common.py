@@ -4,14 +4,26 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sys
+import warnings
 from collections.abc import Callable
 from typing import Any
 
 import typer
 
-from eaco_jax.errors import UserError
+from eaco_jax.errors import Interrupted, UserError
 from eaco_jax.outputs import to_jsonable
+
+
+def _one_line_warning(message: Any, category: type, filename: str, lineno: int,
+                      line: str | None = None) -> str:
+    return f"warning: {message}\n"
+
+
+def one_line_warnings() -> None:
+    """Print the library's warnings as ``warning: ...`` lines (no file and line)."""
+    warnings.formatwarning = _one_line_warning  # type: ignore[assignment]
 
 
 def emit_json(record: dict[str, Any]) -> None:
@@ -34,9 +46,16 @@ def guarded(fn: Callable[..., Any]) -> Callable[..., Any]:
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        one_line_warnings()
         try:
             return fn(*args, **kwargs)
         except UserError as err:
             fail(str(err))
+        except KeyboardInterrupt as err:  # Interrupted (with what to do next) or a bare Ctrl-C
+            text = str(err) if isinstance(err, Interrupted) else "interrupted"
+            sys.stdout.flush()
+            sys.stderr.write(f"{text}\n")
+            sys.stderr.flush()
+            os._exit(130)  # a compilation may still run in a worker thread: do not wait for it
 
     return wrapper

@@ -31,7 +31,7 @@ def _option(name: str, f: dataclasses.Field, hint: Any) -> inspect.Parameter:
         info = typer.Argument(metavar=meta.get("metavar"), help=help_text)
         return inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD,
                                  annotation=Annotated[hint, info])
-    if hint is bool:
+    if hint is bool or hint == (bool | None):
         info = typer.Option(f"{flag}/--no-{name.replace('_', '-')}", help=help_text)
     else:
         info = typer.Option(flag, help=help_text)

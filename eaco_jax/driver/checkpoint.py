@@ -7,26 +7,37 @@ A checkpoint holds everything a run needs to continue as if it had never stopped
 * ``history``: the per-iteration statistics recorded so far;
 * ``meta`` (JSON): the run's identity - checkpoint format, package version, problem name and a
   content hash of its array leaves, strategy class and static fields, hyper-parameter hash,
-  seeds, iteration budget and chunk length - plus ``done`` (iterations completed), ``finished``
-  and the caller's ``run_info`` (for ``eaco resume``: the command name and its arguments).
+  seeds, iteration and evaluation budgets - plus ``done`` (iterations completed), ``finished``,
+  the ``chunk`` length the run was compiled with (reused on resume, so how often a run saves is
+  not part of its identity), a ``digest`` (sha256) of the saved state and history, and the
+  caller's ``run_info`` (for ``eaco resume``: the command name and its arguments).
 
-Checkpoints are written between compiled chunks only (see :func:`eaco_jax.minimize.run_chunks`),
-with the step number = iterations done. A resumed run therefore executes exactly the same
-compiled chunks on exactly the same state as an unbroken one, and its results are bit-identical.
+Checkpoints are written between compiled chunks only (see :func:`eaco_jax.driver.minimize.run`),
+with the step number = iterations done; the driver cuts chunks short so saves land on
+multiples of ``every``. A resumed run executes the same compiled chunk program on the same
+state as an unbroken one, and its results are bit-identical.
 
-Atomicity: orbax writes each step into ``<step>.orbax-checkpoint-tmp-*`` and renames it when it
-is complete, so a process killed mid-write leaves at most a temporary folder that is never
-listed as a step; restore always reads the newest *complete* step. Mismatched runs, corrupt
-files and incompatible versions raise :class:`CheckpointError` (one line) before anything in
-the folder is written or deleted.
+Atomicity and integrity: orbax writes each step into ``<step>.orbax-checkpoint-tmp-*`` and
+renames it when it is complete, so a process killed mid-write leaves at most a temporary folder
+that is never listed as a step. Restore takes the newest step whose files read back and match
+their digest; a step that does not is moved aside into ``<dir>/corrupt/`` (never deleted) with
+a warning, and the next older one is tried. A lock file (``<dir>/.lock``, ``flock``) keeps a
+second process from writing the same folder. Mismatched runs and incompatible versions raise
+:class:`CheckpointError` (one line) before anything in the folder is written or moved.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
+import os
+import shutil
+import sys
 import time
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -88,9 +99,13 @@ def run_identity(
     initial_params: Any,
     seeds: list[int],
     total: int,
-    chunk: int,
+    chunk: int | None = None,
+    max_evaluations: int | None = None,
 ) -> dict[str, Any]:
-    """What must match between a checkpoint and the run that wants to resume from it."""
+    """What must match between a checkpoint and the run that wants to resume from it.
+
+    The chunk length is not part of it (it is stored beside it and reused on resume).
+    """
     fields = {f.name: getattr(strategy, f.name) for f in dataclasses.fields(strategy)}
     return {
         "format": FORMAT,
@@ -106,7 +121,7 @@ def run_identity(
             "params_hash": tree_hash(initial_params),
             "seeds": [int(s) for s in seeds],
             "total": int(total),
-            "chunk": int(chunk),
+            "max_evaluations": None if max_evaluations is None else int(max_evaluations),
         },
     }
 
@@ -132,6 +147,8 @@ def check_identity(stored: dict[str, Any], current: dict[str, Any], where: Path)
     for section in ("problem", "config"):
         old, new = stored.get(section, {}), current[section]
         for name in new:
+            if name == "max_evaluations" and name not in old and new[name] is None:
+                continue  # written before the evaluation budget was stored
             if old.get(name) != new[name]:
                 raise CheckpointError(
                     f"checkpoint in {where} belongs to a different run ({section} {name}: "
@@ -205,41 +222,164 @@ def _manager(directory: Path, keep: int | None, read_only: bool = False):
 
 def latest_step(directory: str | Path) -> int | None:
     """Newest complete step in ``directory`` (None when it holds no checkpoint)."""
+    steps = all_steps(directory)
+    return steps[0] if steps else None
+
+
+def all_steps(directory: str | Path) -> list[int]:
+    """Complete steps in ``directory``, newest first."""
     directory = Path(directory)
     if not directory.is_dir():
-        return None
-    return _manager(directory, None, read_only=True).latest_step()
+        return []
+    with _quiet_logs():  # orbax logs an ERROR for a step whose own metadata is garbled
+        return sorted(_manager(directory, None, read_only=True).all_steps(), reverse=True)
+
+
+@contextlib.contextmanager
+def _quiet_logs() -> Iterator[None]:
+    """Silence orbax's (absl) and asyncio's error logs while a possibly corrupt step is read:
+    a corrupt step is reported as one warning line, not dozens of logged tracebacks."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in ("absl", "asyncio", "orbax")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL)
+    # tensorstore's callbacks print "Event loop is closed" tracebacks straight to fd 2 after a
+    # failed read; they are noise here (the failure itself becomes one warning line)
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    failed = False
+    try:
+        yield
+    except BaseException:
+        failed = True
+        raise
+    finally:
+        if failed:
+            import gc
+
+            time.sleep(0.3)  # let the failed read's callbacks finish while fd 2 is quiet
+            gc.collect()  # and its abandoned coroutines be collected (they print when they are)
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+        for lg, level in zip(loggers, levels, strict=True):
+            lg.setLevel(level)
+
+
+class _Corrupt(Exception):
+    """A step whose files do not read back, or do not match their digest."""
+
+
+def _read_step_meta(directory: Path, step: int) -> dict[str, Any]:
+    import orbax.checkpoint as ocp
+
+    try:
+        with _quiet_logs():
+            out = _manager(directory, None, read_only=True).restore(
+                step, args=ocp.args.Composite(meta=ocp.args.JsonRestore()))
+        meta = dict(out["meta"])
+    except Exception as err:  # noqa: BLE001 - orbax raises many types for unreadable files
+        raise _Corrupt(f"its metadata does not read back ({type(err).__name__})") from None
+    if "config" not in meta or "done" not in meta:
+        raise _Corrupt("it has no run metadata")
+    stored = meta.pop("meta_digest", None)
+    if stored is not None and stored != _meta_digest(meta):
+        raise _Corrupt("its metadata does not match the digest saved with it")
+    return meta
+
+
+def _meta_digest(meta: dict[str, Any]) -> str:
+    text = json.dumps(meta, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
 def read_meta(directory: str | Path) -> dict[str, Any]:
-    """The JSON metadata of the newest complete checkpoint (for ``eaco resume``)."""
-    import orbax.checkpoint as ocp
-
+    """The JSON metadata of the newest checkpoint whose metadata reads back (for ``eaco
+    resume``); corrupt steps are left for :meth:`RunCheckpointer.restore` to move aside."""
     directory = Path(directory)
-    step = latest_step(directory)
-    if step is None:
+    steps = all_steps(directory)
+    if not steps:
         raise CheckpointError(f"no checkpoint in {directory}")
+    reasons = []
+    for step in steps:
+        try:
+            return _read_step_meta(directory, step)
+        except _Corrupt as err:
+            reasons.append(f"step {step}: {err}")
+    raise CheckpointError(
+        f"every checkpoint in {directory} is corrupt ({'; '.join(reasons[:3])}); start again "
+        "with a new --checkpoint-dir")
+
+
+def state_digest(state_on_disk: Any, history: dict[str, Any]) -> str:
+    """sha256 over the saved state (key data as stored) and history: saved in the metadata,
+    compared on restore, so a changed byte is caught."""
+    return tree_hash({"state": state_on_disk,
+                      "history": {k: np.asarray(v) for k, v in history.items()}})
+
+
+class _Lock:
+    """An exclusive ``flock`` on ``<dir>/.lock`` for as long as a run writes the folder."""
+
+    def __init__(self, directory: Path) -> None:
+        self.path = directory / ".lock"
+        self.fd: int | None = None
+
+    def acquire(self) -> None:
+        import fcntl
+
+        try:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as err:
+            raise CheckpointError(
+                f"checkpoint folder {self.path.parent} is not writable ({err.strerror}); use "
+                "another --checkpoint-dir") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            try:
+                holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "?"
+            finally:
+                os.close(fd)
+            raise CheckpointError(
+                f"checkpoint folder {self.path.parent} is in use by another run ({holder}); "
+                "wait for it to finish or use another --checkpoint-dir") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"pid {os.getpid()} since {time.strftime('%H:%M:%S')}".encode(), 0)
+        self.fd = fd
+
+    def release(self) -> None:
+        if self.fd is not None:
+            import fcntl
+
+            fcntl.flock(self.fd, fcntl.LOCK_UN)
+            os.close(self.fd)
+            self.fd = None
+
+
+def check_writable(directory: Path, what: str) -> None:
+    """Create ``directory`` if needed and prove it writable (one line if not)."""
     try:
-        out = _manager(directory, None, read_only=True).restore(
-            step, args=ocp.args.Composite(meta=ocp.args.JsonRestore())
-        )
-        meta = dict(out["meta"])
-    except Exception as err:  # orbax raises many types for unreadable files
+        directory.mkdir(parents=True, exist_ok=True)
+        probe = directory / f".write-test-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as err:
         raise CheckpointError(
-            f"checkpoint {directory / str(step)} is corrupt ({type(err).__name__}); "
-            "delete that step folder to fall back to an older one"
-        ) from None
-    if not isinstance(meta, dict) or "config" not in meta:
-        raise CheckpointError(f"checkpoint {directory / str(step)} has no run metadata")
-    return meta
+            f"{what} {directory} is not writable ({err.strerror or type(err).__name__}); "
+            "choose another folder") from None
 
 
 # --------------------------------------------------------------------------- the checkpointer
 class RunCheckpointer:
     """Saves a run every ``every`` iterations and/or ``seconds`` seconds, keeping the last ``keep``.
 
-    Used by :func:`eaco_jax.minimize.minimize`: :meth:`restore` once before the run,
-    :meth:`after_chunk` at every chunk boundary.
+    Used by :func:`eaco_jax.driver.minimize.run`: :meth:`restore` once before the run (it takes
+    the folder's lock), :meth:`after_chunk` at every chunk boundary, :meth:`close` at the end.
     """
 
     def __init__(
@@ -252,39 +392,61 @@ class RunCheckpointer:
         keep: int = 3,
         run_info: dict[str, Any] | None = None,
         batched: bool = False,
+        chunk: int | None = None,
     ) -> None:
-        if every is not None and every < 1:
-            raise ConfigError(f"checkpoint_every must be >= 1, got {every}")
-        if seconds is not None and seconds <= 0:
+        if every is not None and (isinstance(every, bool) or int(every) != every or every < 1):
+            raise ConfigError(f"checkpoint_every must be an integer >= 1, got {every!r}")
+        if seconds is not None and not seconds > 0:
             raise ConfigError(f"checkpoint_seconds must be > 0, got {seconds}")
-        if keep < 1:
-            raise ConfigError(f"keep must be >= 1, got {keep}")
+        if isinstance(keep, bool) or int(keep) != keep or keep < 1:
+            raise ConfigError(f"keep must be an integer >= 1, got {keep!r}")
         self.directory = Path(directory).absolute()
         self.identity = identity
         self.every = every
         self.seconds = seconds
-        self.keep = keep
+        self.keep = int(keep)
         self.run_info = _jsonable(run_info or {})
         self.axis = 1 if batched else 0
+        self.chunk = chunk
         self._last_done = 0
         self._last_time = time.monotonic()
         self._mgr = None
+        self._lock = _Lock(self.directory)
 
     def _writer(self):
         if self._mgr is None:
-            self.directory.mkdir(parents=True, exist_ok=True)
             self._mgr = _manager(self.directory, self.keep)
         return self._mgr
 
-    def restore(self, template: Any) -> Restored | None:
-        """The newest complete checkpoint of this same run, or None if the folder has none."""
+    def open(self) -> None:
+        """Check the folder writable and take its lock (a second run is refused)."""
+        if self._lock.fd is None:
+            if self.directory.exists() and not self.directory.is_dir():
+                raise CheckpointError(f"checkpoint folder {self.directory} is a file")
+            check_writable(self.directory, "checkpoint folder")
+            self._lock.acquire()
+
+    def close(self) -> None:
+        """Release the folder's lock."""
+        self._lock.release()
+
+    def _move_aside(self, step: int, reason: str) -> None:
+        where = self.directory / "corrupt"
+        where.mkdir(exist_ok=True)
+        target = where / f"{step}-{time.strftime('%Y%m%d-%H%M%S')}"
+        shutil.move(str(self.directory / str(step)), str(target))
+        warnings.warn(
+            f"checkpoint step {step} in {self.directory} is corrupt ({reason}); moved to "
+            f"{target} and falling back to the previous step", stacklevel=4)
+
+    def _read(self, step: int, template: Any) -> Restored:
+        with _quiet_logs():
+            return self._read_unquiet(step, template)
+
+    def _read_unquiet(self, step: int, template: Any) -> Restored:
         import orbax.checkpoint as ocp
 
-        step = latest_step(self.directory)
-        if step is None:
-            return None
-        meta = read_meta(self.directory)
-        check_identity(meta, self.identity, self.directory)
+        meta = _read_step_meta(self.directory, step)
         where = self.directory / str(step)
         try:
             out = _manager(self.directory, None, read_only=True).restore(
@@ -294,54 +456,95 @@ class RunCheckpointer:
                     history=ocp.args.StandardRestore(),
                 ),
             )
-        except Exception as err:  # truncated / garbled array files
-            raise CheckpointError(
-                f"checkpoint {where} is corrupt ({type(err).__name__}); delete that step folder "
-                "to fall back to an older one"
-            ) from None
-        state = _from_disk(out["state"], template, where)
+        except Exception as err:  # noqa: BLE001 - truncated / garbled array files
+            raise _Corrupt(f"its arrays do not read back ({type(err).__name__})") from None
         history = {k: np.asarray(v) for k, v in dict(out["history"] or {}).items()}
+        digest = meta.get("digest")
+        if digest is not None and state_digest(out["state"], history) != digest:
+            raise _Corrupt("its arrays do not match the digest saved with them")
+        try:
+            state = _from_disk(out["state"], template, where)
+        except CheckpointError as err:
+            raise _Corrupt(str(err)) from None
         done = int(meta["done"])
         lengths = {v.shape[self.axis] for v in history.values()} if history else {0}
         if lengths != {done}:
-            raise CheckpointError(f"checkpoint {where} is corrupt (history length != {done})")
-        self._last_done = done
-        self._last_time = time.monotonic()
+            raise _Corrupt(f"its history length is not {done}")
         return Restored(state, done, history, bool(meta.get("finished", False)), meta)
+
+    def restore(self, template: Any) -> Restored | None:
+        """The newest intact checkpoint of this same run, or None if the folder has none.
+
+        Takes the folder's lock first. A step that does not read back or fails its digest is
+        moved into ``corrupt/`` with a warning, and the next older step is tried.
+        """
+        self.open()
+        steps = all_steps(self.directory)
+        if not steps:
+            return None
+        check_identity(read_meta(self.directory), self.identity, self.directory)
+        for step in steps:
+            try:
+                restored = self._read(step, template)
+            except _Corrupt as err:
+                self._move_aside(step, str(err))
+                continue
+            check_identity(restored.meta, self.identity, self.directory)
+            stored_chunk = restored.meta.get("chunk", restored.meta["config"].get("chunk"))
+            if stored_chunk:
+                self.chunk = int(stored_chunk)
+            self._last_done = restored.done
+            self._last_time = time.monotonic()
+            return restored
+        raise CheckpointError(
+            f"every checkpoint in {self.directory} was corrupt (moved to "
+            f"{self.directory / 'corrupt'}); run again to start from scratch")
 
     def due(self, done: int) -> bool:
         by_iters = self.every is not None and done - self._last_done >= self.every
+        by_iters = by_iters or (self.every is not None and done % self.every == 0
+                                and done > self._last_done)
         by_time = self.seconds is not None and time.monotonic() - self._last_time >= self.seconds
         return by_iters or by_time
 
     def after_chunk(
-        self, state: Any, done: int, history: list[dict[str, Any]], finished: bool
+        self, state: Any, done: int, history: list[dict[str, Any]], finished: bool,
+        force: bool = False,
     ) -> bool:
-        """Save if a checkpoint is due (always at the end of the run). Returns whether it did."""
-        if not (finished or self.due(done)):
+        """Save if a checkpoint is due (always at the end of the run, or with ``force``).
+        Returns whether it did."""
+        if not (finished or force or self.due(done)):
             return False
+        if done == 0 or (force and done == self._last_done):
+            return False  # nothing run since the start or the last save
         self.save(state, done, merge_history(history, self.axis), finished)
         return True
 
     def save(self, state: Any, done: int, history: dict[str, Any], finished: bool) -> None:
         import orbax.checkpoint as ocp
 
+        self.open()
+        on_disk = _to_disk(state)
+        history = {k: np.asarray(v) for k, v in history.items()}
         meta = dict(self.identity)
         meta.update(
             done=int(done),
             finished=bool(finished),
+            chunk=None if self.chunk is None else int(self.chunk),
+            digest=state_digest(on_disk, history),
             run_info=self.run_info,
             saved_at=time.time(),
             writer=f"eaco_jax {__version__}",
         )
+        meta["meta_digest"] = _meta_digest(meta)
         mgr = self._writer()
         if done in mgr.all_steps():  # e.g. the final save of a run resumed at its last step
             return
         mgr.save(
             done,
             args=ocp.args.Composite(
-                state=ocp.args.StandardSave(_to_disk(state)),
-                history=ocp.args.StandardSave({k: np.asarray(v) for k, v in history.items()}),
+                state=ocp.args.StandardSave(on_disk),
+                history=ocp.args.StandardSave(history),
                 meta=ocp.args.JsonSave(meta),
             ),
             force=True,

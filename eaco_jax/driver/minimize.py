@@ -10,9 +10,15 @@ shapes and chunk length compiles nothing.
 from __future__ import annotations
 
 import collections
+import contextlib
 import dataclasses
 import math
+import os
+import signal
+import sys
+import threading
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -23,7 +29,7 @@ import numpy as np
 
 from eaco_jax.driver.history import merge_history
 from eaco_jax.driver.stop import Callback, Patience, Progress, StopRule, Target, WallTime
-from eaco_jax.errors import ConfigError, ProblemError
+from eaco_jax.errors import ConfigError, Interrupted, ProblemError
 from eaco_jax.strategies.base import State, Strategy
 
 
@@ -57,8 +63,17 @@ class Result:
     leading row axis.
 
     ``history`` maps a metric name to an array over iterations (best so far, iteration best,
-    iteration mean, diversity, plus strategy-specific metrics). ``stop_reason`` says why the
-    run ended: ``"iterations"`` (the budget) or the name of the stop rule that fired.
+    iteration mean, diversity, plus strategy-specific metrics; with ``max_evaluations`` a row
+    that stopped before the others has NaN there). ``stop_reason`` says why the run ended:
+    ``"iterations"`` (the iteration budget), ``"max_evaluations"`` (the next iteration could
+    have charged more than the budget left), ``"interrupted"`` or the name of the stop rule
+    that fired. ``evaluations`` is what each row was charged (the colony plus what a strategy
+    charges itself, e.g. gradient repair), never more than ``max_evaluations``.
+
+    The returned solution is re-checked on the host: ``best_cost`` is a TSP tour's exact
+    length, and for constrained problems ``f``, ``violation`` and ``feasible`` come from a
+    float64 evaluation of ``x`` (``feasible``: every inequality ``g(x) <= tolerance["inequality"]``
+    and every ``|h(x)| <= tolerance["equality"]``).
     """
 
     best_solution: np.ndarray
@@ -74,29 +89,30 @@ class Result:
     strategy: Strategy
     seeds: list[int]
     stop_reason: str = "iterations"
+    max_evaluations: int | None = None
+    f: np.ndarray | None = None
+    violation: np.ndarray | None = None
+    feasible: np.ndarray | None = None
+    tolerance: dict[str, float] | None = None
+    precision: str = "float32"
+
+    def __post_init__(self) -> None:
+        if self.f is None:
+            self.f = np.asarray(getattr(self.state, "best_f", self.best_cost))
+        if self.violation is None:
+            v = getattr(self.state, "best_violation", None)
+            self.violation = np.zeros_like(self.best_cost) if v is None else np.asarray(v)
+        if self.feasible is None:
+            self.feasible = np.asarray(self.violation) <= 0
 
     @property
     def batched(self) -> bool:
         return len(self.seeds) > 1 or np.ndim(self.best_cost) > 0
 
-    # best solution, objective, violation (strategies with constraints keep best_f /
-    # best_violation in their state; graph problems have no constraints)
     @property
     def x(self) -> np.ndarray:
+        """The best solution (alias of ``best_solution``)."""
         return self.best_solution
-
-    @property
-    def f(self) -> np.ndarray:
-        return np.asarray(getattr(self.state, "best_f", self.best_cost))
-
-    @property
-    def violation(self) -> np.ndarray:
-        v = getattr(self.state, "best_violation", None)
-        return np.zeros_like(self.best_cost) if v is None else np.asarray(v)
-
-    @property
-    def feasible(self) -> np.ndarray:
-        return self.violation <= 0
 
 
 def default_strategy(problem: Any) -> Strategy:
@@ -124,6 +140,15 @@ def default_strategy(problem: Any) -> Strategy:
 
 
 # --------------------------------------------------------------------------- one iteration
+def _nan_count(fitness: Any) -> jax.Array:
+    """Ants whose evaluation holds a NaN (objective or violation)."""
+    leaves = [jnp.isnan(f) for f in jax.tree.leaves(fitness)
+              if jnp.issubdtype(jnp.asarray(f).dtype, jnp.floating)]
+    if not leaves:
+        return jnp.zeros((), jnp.int32)
+    return jnp.any(jnp.stack(leaves), axis=0).sum().astype(jnp.int32)
+
+
 def iteration_step(strategy: Strategy, problem: Any, state: State) -> tuple[State, dict]:
     """One ask -> evaluate -> tell round; the keys for it are split off ``state.key``.
 
@@ -138,30 +163,66 @@ def iteration_step(strategy: Strategy, problem: Any, state: State) -> tuple[Stat
         key, ask_key = jax.random.split(state.key)
         solutions, state = strategy.ask(ask_key, state.replace(key=key), problem)
         fitness = problem.evaluate(solutions)
-    return strategy.tell(state, solutions, fitness, problem)
+    state, metrics = strategy.tell(state, solutions, fitness, problem)
+    return state, {**metrics, NAN_KEY: _nan_count(fitness)}
 
 
-def make_chunk_fn(strategy: Strategy, length: int, batched: bool) -> Callable:
-    """A jitted ``(problem, state, active) -> (state, history)`` over ``length`` iterations.
+#: history column counting NaN evaluations per iteration (all-NaN runs are refused)
+NAN_KEY = "nan_evaluations"
+#: history column (dropped before the result) marking the iterations a capped row ran
+_RAN = "_ran"
+
+
+def _skipped(metrics: Any, state: State) -> dict:
+    """History entries of an iteration that did not run: NaN (floats), -1 (ints), and the
+    unchanged best cost."""
+
+    def fill(name: str, a: Any) -> jax.Array:
+        if name == "best_cost":
+            return jnp.asarray(state.best_cost, a.dtype).reshape(a.shape)
+        if jnp.issubdtype(a.dtype, jnp.floating):
+            return jnp.full(a.shape, jnp.nan, a.dtype)
+        return jnp.full(a.shape, -1 if jnp.issubdtype(a.dtype, jnp.integer) else 0, a.dtype)
+
+    return {k: fill(k, a) for k, a in metrics.items()}
+
+
+def make_chunk_fn(strategy: Strategy, length: int, batched: bool,
+                  capped: bool = False) -> Callable:
+    """A jitted ``(problem, state, active[, budget]) -> (state, history)`` over ``length``
+    iterations.
 
     Only the first ``active`` (a traced int) iterations run; the rest pass the state through
     (``lax.cond``), so a run's last, shorter chunk reuses the same compiled program. The
-    caller drops the history rows past ``active``.
+    caller drops the history rows past ``active``. ``capped``: an iteration also runs only
+    if the evaluations charged so far plus the most one iteration can charge
+    (``strategy.max_charge``) stay within ``budget`` (a traced int), and the history gets a
+    ``_ran`` column.
     """
 
-    def run(problem, state, active):
+    def run(problem, state, active, budget=None):
+        per_iteration = strategy.max_charge(problem) if capped else 0
+
         def step(s, i):
             def skip(s):
                 shapes = jax.eval_shape(lambda t: iteration_step(strategy, problem, t)[1], s)
+                if capped:
+                    return s, _skipped(shapes, s)
                 return s, jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
 
-            return jax.lax.cond(i < active, lambda s: iteration_step(strategy, problem, s),
-                                skip, s)
+            go = i < active
+            if capped:
+                go = go & (s.evaluations.astype(jnp.int32) + per_iteration <= budget)
+            s, hist = jax.lax.cond(go, lambda s: iteration_step(strategy, problem, s), skip, s)
+            if capped:
+                hist = {**hist, _RAN: go}
+            return s, hist
 
         return jax.lax.scan(step, state, jnp.arange(length))
 
     if batched:
-        run = jax.vmap(run, in_axes=(None, 0, None))
+        axes = (None, 0, None, None) if capped else (None, 0, None)
+        run = jax.vmap(run, in_axes=axes)
     return jax.jit(run)
 
 
@@ -178,22 +239,95 @@ def _signature(tree: Any) -> tuple:
                           for x in leaves)
 
 
+def _budget_arg(budget: int | None) -> jax.Array:
+    return jnp.asarray(budget if budget is not None else 2**31 - 1, jnp.int32)
+
+
 def compiled_chunk(strategy: Strategy, length: int, batched: bool, problem: Any,
-                   state: State) -> tuple[Any, float]:
+                   state: State, capped: bool = False,
+                   interrupted: Callable[[], bool] | None = None) -> tuple[Any, float]:
     """The compiled chunk for these shapes and static configuration, and the seconds spent
-    compiling it now (0.0 when it came from this process's cache)."""
-    key = (strategy, length, batched, _signature(problem), _signature(state))
+    compiling it now (0.0 when it came from this process's cache).
+
+    With ``interrupted`` (a poll), compilation runs in a worker thread and
+    :class:`_Interrupt` is raised as soon as the poll says so.
+    """
+    key = (strategy, length, batched, capped, jax.config.jax_enable_x64, _signature(problem),
+           _signature(state))
     if key in _COMPILED:
         _COMPILED.move_to_end(key)
         return _COMPILED[key], 0.0
     t0 = time.perf_counter()
-    active = jnp.int32(length)
-    compiled = make_chunk_fn(strategy, length, batched).lower(problem, state, active).compile()
+    args = (problem, state, jnp.int32(length)) + ((_budget_arg(None),) if capped else ())
+    fn = make_chunk_fn(strategy, length, batched, capped)
+    compiled = _polled(lambda: fn.lower(*args).compile(), interrupted)
     seconds = time.perf_counter() - t0
     _COMPILED[key] = compiled
     while len(_COMPILED) > _COMPILED_MAX:
         _COMPILED.popitem(last=False)
     return compiled, seconds
+
+
+class _Interrupt(Exception):
+    """Raised inside the driver when SIGINT/SIGTERM arrived (turned into :class:`Interrupted`)."""
+
+
+def _polled(fn: Callable[[], Any], interrupted: Callable[[], bool] | None) -> Any:
+    """``fn()`` in a worker thread, polled every 0.1 s so a signal can stop the wait."""
+    if interrupted is None:
+        return fn()
+    box: dict[str, Any] = {}
+    x64 = bool(jax.config.jax_enable_x64)  # JAX's config scopes are per thread
+
+    def target() -> None:
+        try:
+            with jax.enable_x64(x64):
+                box["value"] = fn()
+        except BaseException as err:  # noqa: BLE001 - re-raised in the caller's thread
+            box["error"] = err
+
+    worker = threading.Thread(target=target, name="eaco-compile", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.1)
+        if interrupted():
+            raise _Interrupt
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+class _Signals:
+    """SIGINT / SIGTERM set a flag (the driver stops at the next chunk boundary); a second
+    signal exits at once. Installed only in the main thread."""
+
+    def __init__(self) -> None:
+        self.name: str | None = None
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> _Signals:
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self._old[sig] = signal.signal(sig, self._handle)
+            except (ValueError, OSError):  # pragma: no cover - exotic embeddings
+                pass
+        return self
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self.name is not None:  # second signal: stop now
+            sys.stderr.write("\ninterrupted again: exiting without saving\n")
+            sys.stderr.flush()
+            os._exit(130)
+        self.name = signal.Signals(signum).name
+
+    def __exit__(self, *exc: Any) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+    def __call__(self) -> bool:
+        return self.name is not None
 
 
 # --------------------------------------------------------------------------- setup helpers
@@ -204,9 +338,11 @@ def initial_state(
 
     ``params`` is one Params pytree (default: ``strategy.default_params(problem)``) or a list
     of them (a batch of settings): then row ``r`` belongs to ``params[r // len(seeds)]`` with
-    seed ``seeds[r % len(seeds)]``.
+    seed ``seeds[r % len(seeds)]``. Concrete params are checked against their ranges first.
     """
     if isinstance(params, list | tuple):
+        for i, p in enumerate(params):
+            strategy.check_params(p, where=f"params[{i}]: " if len(params) > 1 else "")
         stacked = stack_params(list(params))
         flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
         keys = jnp.stack([jax.random.key(int(s)) for s in list(seeds) * len(params)])
@@ -214,6 +350,7 @@ def initial_state(
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
     if params is None:
         params = strategy.default_params(problem)
+    strategy.check_params(params)
     if len(seeds) == 1:
         return strategy.init(keys[0], problem, params)
     return jax.vmap(lambda k: strategy.init(k, problem, params))(keys)
@@ -229,22 +366,41 @@ def stack_params(params: Sequence[Any]) -> Any:
     return jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *params)
 
 
+#: evaluation counters are int32
+MAX_EVALUATIONS = 2**31 - 1 - 2**24
+
+
+def _count(name: str, value: Any, low: int = 1, high: int = 2**31 - 1) -> int:
+    """An integer setting in ``[low, high]`` (one ConfigError line otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        if not (isinstance(value, float) and value.is_integer()):
+            raise ConfigError(f"{name} must be an integer, got {value!r}")
+    if not low <= int(value) <= high:
+        raise ConfigError(f"{name}={value} is outside its range {low}..{high}")
+    return int(value)
+
+
 def resolve_iterations(
-    strategy: Strategy, iterations: int | None, max_evaluations: int | None
+    strategy: Strategy, iterations: int | None, max_evaluations: int | None,
+    problem: Any = None,
 ) -> int:
-    """The iteration budget from ``iterations`` or ``max_evaluations`` (default 100)."""
+    """The iteration budget from ``iterations`` or ``max_evaluations`` (default 100).
+
+    With ``max_evaluations`` this is an upper bound (every iteration charges at least
+    ``num_ants``); the driver stops each row before an iteration could exceed the budget.
+    """
     if iterations is not None and max_evaluations is not None:
         raise ConfigError("give iterations or max_evaluations, not both")
     if max_evaluations is not None:
-        if max_evaluations < strategy.num_ants:
+        budget = _count("max_evaluations", max_evaluations, 1, MAX_EVALUATIONS)
+        per_iteration = strategy.max_charge(problem)
+        if budget < per_iteration:
             raise ConfigError(
-                f"max_evaluations={max_evaluations} is below one colony ({strategy.num_ants} ants)"
-            )
-        return max_evaluations // strategy.num_ants
+                f"max_evaluations={budget} is below what one iteration can charge "
+                f"({per_iteration}: {strategy.charge_note(problem)}); raise it or use fewer ants")
+        return max(1, budget // strategy.num_ants)
     iterations = 100 if iterations is None else iterations
-    if iterations < 1:
-        raise ConfigError(f"iterations must be >= 1, got {iterations}")
-    return int(iterations)
+    return _count("iterations", iterations, 1, 2**31 - 1)
 
 
 def checked_seeds(strategy: Strategy, problem: Any, seed: int | Sequence[int]) -> list[int]:
@@ -255,20 +411,21 @@ def checked_seeds(strategy: Strategy, problem: Any, seed: int | Sequence[int]) -
             f"{type(strategy).__name__} solves '{strategy.problem_kind}' problems, "
             f"but {getattr(problem, 'name', problem)!r} is '{kind}'"
         )
-    seeds = [int(seed)] if np.ndim(seed) == 0 else [int(s) for s in seed]
-    if not seeds:
+    raw = [seed] if np.ndim(seed) == 0 else list(seed)
+    if not raw:
         raise ConfigError("seed sequence is empty")
-    return seeds
+    return [_count("seed", s, 0, 2**32 - 1) for s in raw]
 
 
-def default_chunk(total: int, chunk_size: int | None, checkpoint_every: int | None) -> int:
-    """Iterations per compiled call: given, else ~20 chunks per run, at most checkpoint_every."""
+def default_chunk(total: int, chunk_size: int | None, checkpoint_every: int | None = None) -> int:
+    """Iterations per compiled call: given, else ~20 chunks per run.
+
+    (Checkpoints cut chunks short where they are due, so ``checkpoint_every`` no longer
+    changes the chunk length; the argument is kept for callers.)
+    """
     if chunk_size is not None:
-        if chunk_size < 1:
-            raise ConfigError(f"chunk_size must be >= 1, got {chunk_size}")
-        return int(chunk_size)
-    chunk = max(1, math.ceil(total / 20))
-    return min(chunk, int(checkpoint_every)) if checkpoint_every else chunk
+        return _count("chunk_size", chunk_size)
+    return max(1, math.ceil(total / 20))
 
 
 def stop_rules(
@@ -281,12 +438,15 @@ def stop_rules(
     """The named stop rules of :func:`minimize`'s keywords."""
     rules: list[tuple[str, StopRule]] = []
     if target is not None:
+        if not math.isfinite(float(target)):
+            raise ConfigError(f"target must be a finite number, got {target!r}")
         rules.append(("target", Target(float(target))))
     if patience is not None:
-        rules.append(("patience", Patience(int(patience))))
+        rules.append(("patience", Patience(_count("patience", patience))))
     if max_seconds is not None:
-        if not max_seconds > 0:
-            raise ConfigError(f"max_seconds must be > 0, got {max_seconds}")
+        if not (isinstance(max_seconds, int | float) and max_seconds > 0
+                and math.isfinite(max_seconds)):
+            raise ConfigError(f"max_seconds must be a number > 0, got {max_seconds!r}")
         rules.append(("max_seconds", WallTime(float(max_seconds))))
     if callback is not None:
         rules.append(("callback", Callback(callback)))
@@ -294,6 +454,72 @@ def stop_rules(
         for r in ([stop] if callable(stop) else list(stop)):
             rules.append((getattr(r, "__name__", type(r).__name__), r))
     return rules
+
+
+PRECISIONS = ("auto", "float32", "float64")
+
+
+def _float_leaves(tree: Any) -> list[Any]:
+    return [x for x in jax.tree.leaves(tree)
+            if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating)]
+
+
+def needs_float64(problem: Any, precision: str = "auto") -> bool:
+    """Whether :func:`minimize` runs ``problem`` in float64 (see the README's rule).
+
+    ``auto``: float64 for a problem that holds float64 arrays (built inside
+    :func:`eaco_jax.problems.float64`) or has constraints (inequality or equality) and is
+    differentiable JAX code; otherwise the problem's own dtype. ``float32`` with a float64
+    problem is refused (one line).
+    """
+    if precision not in PRECISIONS:
+        raise ConfigError(f"precision={precision!r} is not one of {', '.join(PRECISIONS)}")
+    has64 = any(x.dtype == np.float64 for x in _float_leaves(problem))
+    if precision == "float64":
+        return True
+    if precision == "float32":
+        if has64:
+            raise ConfigError(
+                f"problem {getattr(problem, 'name', '')!r} holds float64 arrays (built inside "
+                "float64()); use precision='float64' or 'auto', or build it outside float64()")
+        return False
+    constrained = (int(getattr(problem, "num_inequality", 0))
+                   + int(getattr(problem, "num_equality", 0))) > 0
+    return has64 or (constrained and bool(getattr(problem, "differentiable", True)))
+
+
+def as_float64(problem: Any) -> Any:
+    """``problem`` with its floating-point arrays in float64 (call inside a float64 scope)."""
+    return jax.tree.map(
+        lambda x: jnp.asarray(x, jnp.float64)
+        if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating) else x, problem)
+
+
+def _memory_limit() -> int:
+    """Bytes the default device may hold (GPU: its memory; CPU: physical memory)."""
+    try:
+        stats = jax.devices()[0].memory_stats() or {}
+        if stats.get("bytes_limit"):
+            return int(stats["bytes_limit"])
+    except Exception:  # noqa: BLE001 - memory_stats is optional per backend
+        pass
+    from eaco_jax.problems.tsplib import memory_bytes
+
+    return memory_bytes()
+
+
+def check_state_memory(strategy: Strategy, problem: Any, rows: int, params: Any) -> None:
+    """Refuse a colony whose state alone would not fit in memory (abstract: nothing allocated)."""
+    one = params[0] if isinstance(params, list | tuple) else params
+    shapes = jax.eval_shape(lambda k: strategy.init(k, problem, one), jax.random.key(0))
+    per_row = sum(int(np.prod(a.shape)) * a.dtype.itemsize for a in jax.tree.leaves(shapes)
+                  if hasattr(a, "dtype") and not jnp.issubdtype(a.dtype, jax.dtypes.prng_key))
+    need, limit = per_row * rows, _memory_limit()
+    if need > limit // 2:
+        raise ConfigError(
+            f"the colony state needs {need / 2**30:.1f} GiB ({rows} row(s) of "
+            f"{type(strategy).__name__}(num_ants={strategy.num_ants})), more than half of the "
+            f"{limit / 2**30:.1f} GiB available; use fewer ants, seeds or settings")
 
 
 # --------------------------------------------------------------------------- the driver
@@ -313,17 +539,22 @@ def minimize(
     chunk_size: int | None = None,
     progress: bool = False,
     checkpointing: Checkpointing | None = None,
+    precision: str = "auto",
 ) -> Result:
     """Minimise ``problem`` with an EACO colony (or any strategy of the library).
 
     Args:
       problem: a graph, path or continuous problem (see :mod:`eaco_jax.problems`).
       strategy: the colony; default :func:`default_strategy` for the problem's kind.
-      seed: an int, or a sequence of ints to run several seeds as one vmapped call.
+      seed: an int in ``0..2**32-1``, or a sequence of them to run several seeds as one
+        vmapped call.
       params: hyper-parameters (default ``strategy.default_params(problem)``), or a list of
         Params to run every setting x every seed as one vmapped call (row ``r`` is
-        ``params[r // len(seeds)]`` with seed ``seeds[r % len(seeds)]``).
+        ``params[r // len(seeds)]`` with seed ``seeds[r % len(seeds)]``). Concrete values are
+        checked against each field's documented range before anything runs.
       iterations / max_evaluations: the budget (one of them; default 100 iterations).
+        ``max_evaluations`` is a hard cap on the evaluations charged to each row: an
+        iteration that could charge more than what is left is not started.
       target / patience / max_seconds / callback / stop: stop rules, checked after every
         chunk (see :mod:`eaco_jax.driver.stop`): every row's best <= target; every row
         stagnated ``patience`` iterations; compute seconds (compilation excluded);
@@ -331,19 +562,76 @@ def minimize(
       chunk_size: iterations per compiled call (default: about 20 chunks per run).
       progress: show a progress bar (tqdm).
       checkpointing: save (and resume) the run, see :class:`Checkpointing`.
+      precision: ``"auto"`` (float64 for problems with constraints or float64 arrays, see
+        :func:`needs_float64`), ``"float32"`` or ``"float64"``; a float64 run is scoped to
+        this call whatever scope it is called in.
+
+    SIGINT / SIGTERM (Ctrl-C) stop the run at the next chunk boundary (or during
+    compilation) and raise :class:`~eaco_jax.errors.Interrupted` with the result so far
+    (``err.result``), after a final checkpoint when checkpointing.
     """
     strategy = default_strategy(problem) if strategy is None else strategy
     seeds = checked_seeds(strategy, problem, seed)
-    problem = strategy.prepare(problem)
-    total = resolve_iterations(strategy, iterations, max_evaluations)
-    every = checkpointing.every if checkpointing is not None else None
-    chunk = default_chunk(total, chunk_size, every)
-    rows = len(seeds) * (len(params) if isinstance(params, list | tuple) else 1)
-    rules = stop_rules(target, patience, max_seconds, callback, stop)
-    state = initial_state(strategy, problem, seeds, params)
-    row_seeds = seeds * (rows // len(seeds))
-    return run(strategy, problem, state, total=total, chunk=chunk, seeds=row_seeds,
-               rules=rules, progress=progress, checkpointing=checkpointing)
+    use64 = needs_float64(problem, precision)
+    scope = jax.enable_x64(True) if use64 else contextlib.nullcontext()
+    with scope:
+        if use64:
+            problem = as_float64(problem)
+        problem = strategy.prepare(problem)
+        total = resolve_iterations(strategy, iterations, max_evaluations, problem)
+        chunk = default_chunk(total, chunk_size)
+        n_settings = len(params) if isinstance(params, list | tuple) else 1
+        rows = len(seeds) * n_settings
+        rules = stop_rules(target, patience, max_seconds, callback, stop)
+        if params is None:
+            params = strategy.default_params(problem)
+        check_state_memory(strategy, problem, rows, params)
+        state = initial_state(strategy, problem, seeds, params)
+        row_seeds = seeds * n_settings
+        return run(strategy, problem, state, total=total, chunk=chunk, seeds=row_seeds,
+                   rules=rules, progress=progress, checkpointing=checkpointing,
+                   max_evaluations=max_evaluations)
+
+
+def _exhausted(strategy: Strategy, problem: Any, state: State, budget: int | None) -> bool:
+    """Whether no row can start another iteration within ``budget``."""
+    if budget is None:
+        return False
+    charged = np.asarray(state.evaluations, np.int64)
+    return bool(np.all(charged + strategy.max_charge(problem) > budget))
+
+
+def _trim(hist: dict[str, Any], length: int, batched: bool) -> dict[str, np.ndarray]:
+    """The chunk's history up to ``length`` (and, for capped runs, the last iteration any
+    row ran), without the ``_ran`` column."""
+    ran = hist.get(_RAN)
+    if ran is not None:
+        ran = np.asarray(ran)
+        any_ran = ran.any(axis=0) if batched else ran
+        idx = np.flatnonzero(any_ran[:length])
+        length = int(idx[-1]) + 1 if idx.size else 0
+    cut = (slice(None), slice(length)) if batched else (slice(length),)
+    return {k: np.asarray(v)[cut] for k, v in hist.items() if k != _RAN}
+
+
+def _check_nan(history: list[dict[str, Any]], problem: Any, strategy: Strategy,
+               batched: bool) -> None:
+    """Every evaluation so far NaN (in some row): a broken objective; one ProblemError line."""
+    counts = [np.asarray(h[NAN_KEY]) for h in history if NAN_KEY in h]
+    if not counts:
+        return
+    axis = 1 if batched else 0
+    cat = np.concatenate(counts, axis=axis)
+    if cat.shape[axis] == 0:
+        return
+    ran = np.where(cat >= 0, strategy.num_ants, 0).sum(axis=axis)
+    nan = np.where(cat >= 0, cat, 0).sum(axis=axis)
+    if np.any((ran > 0) & (nan >= ran)):
+        name = getattr(problem, "name", type(problem).__name__)
+        raise ProblemError(
+            f"every evaluation of {name!r} returned NaN ({int(np.max(ran))} evaluations): its "
+            "objective or constraints are NaN across the search box; check the function and "
+            "its bounds")
 
 
 def run(
@@ -357,25 +645,37 @@ def run(
     rules: list[tuple[str, StopRule]] | None = None,
     progress: bool = False,
     checkpointing: Checkpointing | None = None,
+    max_evaluations: int | None = None,
 ) -> Result:
-    """Run ``state`` (one row per entry of ``seeds``) in chunks to ``total`` iterations, or
-    from the checkpoint of this same run in ``checkpointing.directory``."""
+    """Run ``state`` (one row per entry of ``seeds``) in chunks to ``total`` iterations
+    (and, with ``max_evaluations``, until no row can start another iteration), or from the
+    checkpoint of this same run in ``checkpointing.directory``."""
     batched = len(seeds) > 1
+    capped = max_evaluations is not None
+    budget = _budget_arg(max_evaluations)
     done, history = 0, []
     checkpointer = None
+    every = None
     if checkpointing is not None:
         from eaco_jax.driver.checkpoint import RunCheckpointer, run_identity, strong_types
 
         state = strong_types(state)
-        identity = run_identity(problem, strategy, state.params, seeds, total, chunk)
+        identity = run_identity(problem, strategy, state.params, seeds, total, chunk,
+                                max_evaluations=max_evaluations)
         checkpointer = RunCheckpointer(
             checkpointing.directory, identity, every=checkpointing.every,
             seconds=checkpointing.seconds, keep=checkpointing.keep,
-            run_info=checkpointing.run_info, batched=batched,
+            run_info=checkpointing.run_info, batched=batched, chunk=chunk,
         )
-        restored = checkpointer.restore(state)
+        every = checkpointing.every
+        try:
+            restored = checkpointer.restore(state)
+        except BaseException:
+            checkpointer.close()
+            raise
         if restored is not None:
             state, done, history = restored.state, restored.done, [restored.history]
+            chunk = checkpointer.chunk  # the chunk length the run was started with
             if restored.finished:
                 total = done
 
@@ -388,50 +688,160 @@ def run(
         from tqdm.auto import tqdm
 
         bar = tqdm(total=total, initial=done, desc=getattr(problem, "name", "eaco"), unit="it")
+    signals = _Signals()
     try:
-        while done < total:
-            length = min(chunk, total - done)
-            compiled, seconds = compiled_chunk(strategy, chunk, batched, problem, state)
-            compile_seconds += seconds
-            t0 = time.perf_counter()
-            state, hist = compiled(problem, state, jnp.int32(length))
-            jax.block_until_ready(state)
-            run_seconds += time.perf_counter() - t0
-            hist = jax.device_get(hist)
-            time_axis = (slice(None), slice(length)) if batched else (slice(length),)
-            history.append({k: np.asarray(v)[time_axis] for k, v in hist.items()})
-            done += length
-            if bar is not None:
-                bar.update(length)
-                bar.set_postfix(best=float(np.min(np.asarray(state.best_cost))))
-            info = Progress(done, run_seconds, compile_seconds)
-            fired_names = [name for name, rule in rules if rule(state, info)]  # every rule sees
-            fired = bool(fired_names)  # every chunk (callbacks too)
-            if fired:
-                reason = fired_names[0]
-            if checkpointer is not None:
-                checkpointer.after_chunk(state, done, history, finished=fired or done >= total)
-            if fired:
-                break
+        with signals:
+            while done < total:
+                if capped and _exhausted(strategy, problem, state, max_evaluations):
+                    reason = "max_evaluations"
+                    break
+                length = min(chunk, total - done)
+                if every:  # saves land on multiples of checkpoint_every
+                    length = min(length, every - done % every)
+                try:
+                    compiled, seconds = compiled_chunk(strategy, chunk, batched, problem, state,
+                                                       capped, interrupted=signals)
+                except _Interrupt:
+                    reason = "interrupted"
+                    break
+                compile_seconds += seconds
+                if signals():
+                    reason = "interrupted"
+                    break
+                t0 = time.perf_counter()
+                args = (problem, state, jnp.int32(length)) + ((budget,) if capped else ())
+                state, hist = compiled(*args)
+                jax.block_until_ready(state)
+                run_seconds += time.perf_counter() - t0
+                chunk_hist = _trim(jax.device_get(hist), length, batched)
+                history.append(chunk_hist)
+                if capped and chunk_hist:  # the iterations any row ran (rows stop on budget)
+                    length = next(iter(chunk_hist.values())).shape[1 if batched else 0]
+                done += length
+                _check_nan(history, problem, strategy, batched)
+                if bar is not None:
+                    bar.update(length)
+                    bar.set_postfix(best=float(np.min(np.asarray(state.best_cost))))
+                info = Progress(done, run_seconds, compile_seconds)
+                fired_names = [name for name, rule in rules if rule(state, info)]  # every rule
+                if fired_names:  # sees every chunk (callbacks too)
+                    reason = fired_names[0]
+                elif capped and _exhausted(strategy, problem, state, max_evaluations):
+                    reason = "max_evaluations"
+                elif signals():
+                    reason = "interrupted"
+                stopping = reason != "iterations" or done >= total
+                if checkpointer is not None:
+                    checkpointer.after_chunk(state, done, history,
+                                             finished=stopping and reason != "interrupted",
+                                             force=reason == "interrupted")
+                if stopping:
+                    break
+            if reason == "interrupted" and checkpointer is not None:
+                checkpointer.after_chunk(state, done, history, finished=False, force=True)
     finally:
         if bar is not None:
             bar.close()
+        if checkpointer is not None:
+            checkpointer.close()
 
+    result = _result(strategy, problem, state, history, batched, seeds, reason,
+                     compile_seconds, run_seconds, done - start, max_evaluations)
+    if reason == "interrupted":
+        raise Interrupted(_interrupt_message(signals.name or "SIGINT", result, done, total,
+                                             checkpointing), result)
+    return result
+
+
+def _interrupt_message(name: str, result: Result, done: int, total: int,
+                       checkpointing: Checkpointing | None) -> str:
+    head = f"interrupted ({name}) after {done} of {total} iterations"
+    if checkpointing is not None and done == 0:
+        return f"{head}; nothing to save yet (start the same command again)"
+    if checkpointing is not None:
+        where = Path(checkpointing.directory)
+        info = checkpointing.run_info or {}
+        how = (f"eaco resume {where}" if info.get("kind") else
+               "call minimize() again with the same Checkpointing")
+        return f"{head}; checkpoint saved at step {done} in {where}; continue with: {how}"
+    best = np.asarray(result.best_cost, np.float64).reshape(-1)
+    shown = ", ".join(f"{b:.6g}" for b in best[:8]) + (", ..." if best.size > 8 else "")
+    return f"{head}; best so far: {shown} (no checkpoint: pass --checkpoint-dir to resume)"
+
+
+def _result(strategy: Strategy, problem: Any, state: State, history: list[dict[str, Any]],
+            batched: bool, seeds: list[int], reason: str, compile_seconds: float,
+            run_seconds: float, iters_here: int, max_evaluations: int | None) -> Result:
+    """The :class:`Result`, with the returned solution re-checked on the host."""
     axis = 1 if batched else 0
     merged = merge_history(history, axis)
+    merged.pop(NAN_KEY, None)
     iters_run = next(iter(merged.values())).shape[axis] if merged else 0
+    best_solution = np.asarray(state.best_solution)
+    best_cost = np.asarray(state.best_cost)
+    checked = host_checks(problem, best_solution, batched)
+    extra: dict[str, Any] = {}
+    if checked:
+        best_cost = _rows([c["cost"] for c in checked], batched)
+        if "f" in checked[0]:
+            extra["f"] = _rows([c["f"] for c in checked], batched)
+            extra["violation"] = _rows([c["violation"] for c in checked], batched)
+            extra["feasible"] = _rows([c["feasible"] for c in checked], batched, bool)
+            extra["tolerance"] = checked[0].get("tolerance")
+            _warn_feasibility(state, extra["feasible"], problem)
+    dtypes = {x.dtype for x in _float_leaves(problem)}
     return Result(
-        best_solution=np.asarray(state.best_solution),
-        best_cost=np.asarray(state.best_cost),
+        best_solution=best_solution,
+        best_cost=best_cost,
         history=merged,
         iterations=iters_run,
         evaluations=np.asarray(state.evaluations),
         seconds=compile_seconds + run_seconds,
         compile_seconds=compile_seconds,
-        seconds_per_iteration=run_seconds / max(done - start, 1),
+        seconds_per_iteration=run_seconds / max(iters_here, 1),
         state=state,
         problem=problem,
         strategy=strategy,
         seeds=seeds,
         stop_reason=reason,
+        max_evaluations=max_evaluations,
+        precision="float64" if np.dtype("float64") in dtypes else "float32",
+        **extra,
     )
+
+
+def _rows(values: list[Any], batched: bool, dtype: Any = np.float64) -> np.ndarray:
+    a = np.asarray(values, dtype)
+    return a if batched else a[0]
+
+
+def host_checks(problem: Any, best_solution: np.ndarray, batched: bool) -> list[dict[str, Any]]:
+    """``problem.host_check`` of every row's returned solution ([] if the problem has none).
+
+    A returned solution that is not a solution (not a permutation, outside the bounds) is a
+    bug in the strategy: it raises ``RuntimeError`` rather than report a wrong result.
+    """
+    check = getattr(problem, "host_check", None)
+    if check is None:
+        return []
+    out = []
+    for row in (best_solution if batched else best_solution[None]):
+        try:
+            out.append(check(row))
+        except ProblemError as err:
+            raise RuntimeError(
+                f"the returned best solution is not a valid solution of "
+                f"{getattr(problem, 'name', '')!r}: {err} (a bug; please report it)") from None
+    return out
+
+
+def _warn_feasibility(state: State, feasible: np.ndarray, problem: Any) -> None:
+    v = getattr(state, "best_violation", None)
+    if v is None:
+        return
+    claimed = np.asarray(v) <= 0
+    if np.any(claimed & ~np.asarray(feasible)):
+        warnings.warn(
+            f"{getattr(problem, 'name', '')!r}: a point feasible in the run's precision violates "
+            "a constraint when re-checked in float64; run with precision='float64' (or 'auto')",
+            stacklevel=3)

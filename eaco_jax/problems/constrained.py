@@ -132,9 +132,45 @@ class ConstrainedProblem:
         f = jnp.asarray(self.objective(x), x.dtype).reshape(())
         return f, self.violation_one(x)
 
+    # ------------------------------------------------------------------ host check
+    def host_check(self, x: Any) -> dict[str, Any]:
+        """Objective and violation of one point, recomputed on the host in float64.
+
+        What :func:`~eaco_jax.minimize` reports: ``f``, ``violation``, ``feasible`` (every
+        ``g <= 0`` and every ``|h| <= 1e-4``: the tolerances, also returned) and ``cost``
+        (``f`` if feasible, else +inf). A point outside the bounds raises
+        :class:`ProblemError` (the driver turns that into a bug report).
+        """
+        point = np.asarray(x, np.float64).reshape(-1)
+        lo, hi = np.asarray(self.lower, np.float64), np.asarray(self.upper, np.float64)
+        if point.shape != lo.shape:
+            raise ProblemError(f"problem {self.name!r}: a point must have shape {lo.shape}, "
+                               f"got {point.shape}")
+        # a float32 run clips to float32 bounds: allow their rounding
+        slack = 4 * np.finfo(np.asarray(self.lower).dtype).eps * np.maximum(np.abs(lo), 1.0)
+        if np.any(point < lo - slack) or np.any(point > hi + slack):
+            raise ProblemError(f"problem {self.name!r}: point outside its bounds")
+        with jax.enable_x64(True):
+            p64 = ConstrainedProblem.tree_unflatten(
+                self.tree_flatten()[1], (jnp.asarray(lo), jnp.asarray(hi)))
+            x64 = jnp.asarray(point, jnp.float64)
+            f, v = p64.evaluate_one(x64)
+            f, v = float(f), float(v)
+        if math.isnan(v):
+            v = math.inf
+        feasible = v <= 0.0
+        return {"f": f, "violation": v, "feasible": feasible,
+                "cost": f if feasible and not math.isnan(f) else math.inf,
+                "tolerance": {"inequality": 0.0, "equality": EQUALITY_TOLERANCE}}
+
     # ------------------------------------------------------------------ batched
     def evaluate(self, solutions: Array) -> Evaluation:
         """Objective and total violation of a batch ``(m, n)`` of vectors."""
+        if not isinstance(solutions, jax.core.Tracer):
+            shape = np.shape(solutions)
+            if len(shape) != 2 or shape[1] != self.dim:
+                raise ProblemError(f"problem {self.name!r}: evaluate takes points of shape "
+                                   f"(m, {self.dim}), got {shape}")
         f, v = jax.vmap(self.evaluate_one)(solutions)
         return Evaluation(f=f, violation=v)
 

@@ -1,9 +1,15 @@
 """The symmetric travelling salesman problem as a graph problem for the colony.
 
-A :class:`TSP` holds the distance matrix (float32 holding exact integers for TSPLIB metrics,
-exact for tour lengths below 2**24) and each city's ``k`` nearest neighbours (candidate lists
-for construction and local search). Tours are ``int32`` permutations of ``0..n-1``; a tour is
-closed (the last city returns to the first).
+A :class:`TSP` holds the distance matrix in float32 and each city's ``k`` nearest neighbours
+(candidate lists for construction and local search). Tours are ``int32`` permutations of
+``0..n-1``; a tour is closed (the last city returns to the first).
+
+Exactness: TSPLIB files (and integer matrices) give integer distances (each below 2**24, so
+exact in float32); inside a compiled run a tour's length is summed in int32 (exact to 2**31),
+and the lengths :func:`~eaco_jax.minimize` reports are summed again on the host in int64.
+Coordinates give real (unrounded) Euclidean distances unless a TSPLIB ``metric`` is named;
+their reported lengths are float64 sums of the float32 edges. Called from the host (not
+under ``jit``/``vmap``), :meth:`TSP.evaluate` checks its tours and returns float64 lengths.
 
 Constructors: :meth:`TSP.from_coords`, :meth:`TSP.from_distance_matrix` and
 :func:`load_tsplib` (a bundled instance by name, or any ``.tsp`` file by path).
@@ -12,7 +18,9 @@ Constructors: :meth:`TSP.from_coords`, :meth:`TSP.from_distance_matrix` and
 from __future__ import annotations
 
 import csv
+import functools
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -48,7 +56,12 @@ def nearest_neighbors(dist: np.ndarray, k: int) -> np.ndarray:
     return np.argsort(d, axis=1, kind="stable")[:, :k].astype(np.int32)
 
 
-def _check_matrix(d: np.ndarray) -> np.ndarray:
+#: integer tour lengths are summed in int32 inside a run: every tour must stay below this
+INT32_SUM_LIMIT = 2**31 - 1
+
+
+def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The checked float64 matrix and whether every entry is an integer."""
     d = np.asarray(d)
     if d.ndim != 2 or d.shape[0] != d.shape[1]:
         raise ProblemError(f"distance matrix must be square (n, n), got shape {d.shape}")
@@ -65,11 +78,32 @@ def _check_matrix(d: np.ndarray) -> np.ndarray:
         raise ProblemError("distance matrix is not symmetric (only the symmetric TSP is supported)")
     if np.any(np.diag(d) != 0):
         raise ProblemError("distance matrix must have a zero diagonal")
-    if d.max() >= 2**24:
+    integer = bool(np.all(d == np.round(d)))
+    if integer and d.max() >= 2**24:
         raise ProblemError(
-            "distances >= 2**24 cannot be held exactly in float32; rescale the matrix"
+            "integer distances >= 2**24 cannot be held exactly in float32; rescale the matrix"
         )
-    return d
+    longest = float(d.max(axis=1).sum())  # no tour is longer than the sum of row maxima
+    if integer and longest > INT32_SUM_LIMIT:
+        raise ProblemError(
+            f"tours of this matrix can reach {longest:.0f} >= 2**31, beyond the exact int32 "
+            "sum used inside a run; rescale the matrix")
+    if not integer and longest > 1e37:
+        raise ProblemError("distances are too large for float32 sums; rescale the matrix")
+    return d, integer
+
+
+@functools.partial(jax.jit, static_argnames="integer")
+def _traced_lengths(dist: jax.Array, tours: jax.Array, integer: bool) -> jax.Array:
+    tours = jnp.asarray(tours, jnp.int32)
+    edges = dist[tours, jnp.roll(tours, -1, axis=-1)]
+    if integer:  # exact in int32 (the constructor checked that every tour fits)
+        return edges.astype(jnp.int32).sum(-1).astype(jnp.float32)
+    return edges.sum(-1).astype(jnp.float32)
+
+
+def _is_traced(*xs: Any) -> bool:
+    return any(isinstance(x, jax.core.Tracer) for x in xs)
 
 
 @struct.dataclass
@@ -83,6 +117,8 @@ class TSP:
       name: instance name for results.
       optimum: known optimal tour length, or None.
       kind: always ``"graph"``.
+      integer: every distance is an integer (TSPLIB metrics, integer matrices): tour lengths
+        are then summed exactly in integers.
     """
 
     dist: jax.Array
@@ -91,18 +127,43 @@ class TSP:
     name: str = struct.field(pytree_node=False, default="custom")
     optimum: float | None = struct.field(pytree_node=False, default=None)
     kind: str = struct.field(pytree_node=False, default="graph")
+    integer: bool = struct.field(pytree_node=False, default=False)
 
     @property
     def n(self) -> int:
         """Number of cities."""
         return self.dist.shape[-1]
 
-    @jax.jit
-    def evaluate(self, tours: jax.Array) -> jax.Array:
-        """Closed-tour lengths ``(m,)`` float32 of int32 tours ``(m, n)``."""
-        tours = jnp.asarray(tours, jnp.int32)
-        nxt = jnp.roll(tours, -1, axis=-1)
-        return self.dist[tours, nxt].sum(-1).astype(jnp.float32)
+    def evaluate(self, tours: jax.Array) -> Any:
+        """Closed-tour lengths ``(m,)`` of tours ``(m, n)``.
+
+        Traced (inside ``jit``/``vmap``, as the driver calls it): float32, summed in int32 for
+        integer distances. Called from the host with concrete tours: every tour is checked (a
+        permutation of ``0..n-1``, else :class:`ProblemError`) and the lengths are float64,
+        exact for integer distances.
+        """
+        if _is_traced(tours, self.dist):
+            return _traced_lengths(self.dist, tours, self.integer)
+        t = np.asarray(tours)
+        if t.ndim != 2 or t.shape[1] != self.n:
+            raise ProblemError(
+                f"{self.name}: evaluate takes tours of shape (m, {self.n}), got {t.shape}")
+        return np.array([self.exact_length(row) for row in t], dtype=np.float64)
+
+    def exact_length(self, tour: Any) -> float:
+        """Closed length of one tour on the host (checked: a permutation of ``0..n-1``):
+        an int64 sum for integer distances, else a float64 sum of the float32 edges."""
+        d = np.asarray(self.dist)
+        t = validate_tour(np.asarray(tour), d.shape[0])
+        edges = d[t, np.roll(t, -1)]
+        if self.integer:
+            return float(np.asarray(edges, np.int64).sum())
+        return float(np.asarray(edges, np.float64).sum())
+
+    def host_check(self, solution: Any) -> dict[str, Any]:
+        """What :func:`~eaco_jax.minimize` reports for a returned tour: its exact length
+        (raises :class:`ProblemError` if it is not a permutation)."""
+        return {"cost": self.exact_length(solution)}
 
     def gap(self, length: float) -> float | None:
         """Relative gap ``length / optimum - 1`` (None when the optimum is unknown)."""
@@ -117,8 +178,11 @@ class TSP:
         optimum: float | None = None,
         coords: np.ndarray | None = None,
     ) -> TSP:
-        """A TSP from a square, finite, non-negative, symmetric matrix with zero diagonal."""
-        d = _check_matrix(d)
+        """A TSP from a square, finite, non-negative, symmetric matrix with zero diagonal.
+
+        An all-integer matrix gives exact integer tour lengths; any other is held in float32.
+        """
+        d, integer = _check_matrix(d)
         nbr = nearest_neighbors(d, neighbors)
         return cls(
             dist=jnp.asarray(d, jnp.float32),
@@ -126,6 +190,7 @@ class TSP:
             coords=None if coords is None else jnp.asarray(coords, jnp.float32),
             name=name,
             optimum=optimum,
+            integer=integer,
         )
 
     @classmethod
@@ -133,19 +198,38 @@ class TSP:
         cls,
         coords: np.ndarray,
         name: str = "custom",
-        metric: str = "EUC_2D",
+        metric: str | None = None,
         neighbors: int = DEFAULT_NEIGHBORS,
         optimum: float | None = None,
     ) -> TSP:
-        """A TSP from ``(n, 2)`` coordinates and a TSPLIB metric (EUC_2D, CEIL_2D, ATT, GEO)."""
-        if metric.upper() not in COORD_TYPES:
-            raise ProblemError(
-                f"metric {metric!r} is not supported; use one of {', '.join(COORD_TYPES)}"
-            )
+        """A TSP from ``(n, 2)`` coordinates.
+
+        ``metric=None`` (default): real Euclidean distances, unrounded. A TSPLIB metric
+        (``EUC_2D``, ``CEIL_2D``, ``ATT``, ``GEO``) applies that metric's integer rounding.
+        """
+        if metric is None:
+            d = euclidean_distances(coords)
+        else:
+            if str(metric).upper() not in COORD_TYPES:
+                raise ProblemError(
+                    f"metric {metric!r} is not supported; use None (real Euclidean) or one of "
+                    f"{', '.join(COORD_TYPES)}"
+                )
+            d = coord_distances(coords, metric)
         return cls.from_distance_matrix(
-            coord_distances(coords, metric), name=name, neighbors=neighbors, optimum=optimum,
-            coords=np.asarray(coords),
+            d, name=name, neighbors=neighbors, optimum=optimum, coords=np.asarray(coords),
         )
+
+
+def euclidean_distances(coords: Any) -> np.ndarray:
+    """``(n, n)`` float64 Euclidean distances (no rounding) between ``(n, 2)`` coordinates."""
+    xy = np.asarray(coords, dtype=np.float64)
+    if xy.ndim != 2 or xy.shape[1] != 2:
+        raise ProblemError(f"coords must have shape (n, 2), got {xy.shape}")
+    if not np.all(np.isfinite(xy)):
+        raise ProblemError("coords contain NaN or infinite values")
+    diff = xy[:, None, :] - xy[None, :, :]
+    return np.sqrt((diff**2).sum(-1))
 
 
 def load_tsplib(name_or_path: str | Path, neighbors: int = DEFAULT_NEIGHBORS) -> TSP:

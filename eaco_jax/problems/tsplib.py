@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 from pathlib import Path
 
@@ -82,10 +83,29 @@ def _parse_header(raw: str) -> tuple[str, str] | None:
     return key, value.strip()
 
 
+def memory_bytes() -> int:
+    """Physical memory of this machine in bytes (a bound for what a problem may allocate)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # not POSIX: assume plenty
+        return 2**50
+
+
+def check_dimension(n: int, where: str) -> None:
+    """Refuse a city count whose distance matrices (float64 + float32, n x n) do not fit."""
+    need = 16 * n * n
+    if need > memory_bytes() // 2:
+        raise ProblemError(
+            f"{where}: DIMENSION {n} needs {need / 2**30:.1f} GiB for its distance matrix, more "
+            f"than half of this machine's {memory_bytes() / 2**30:.1f} GiB")
+
+
 def _read_coords(path: Path, lines: list[tuple[int, str]], n: int, section: str) -> np.ndarray:
     """Parse ``id x y`` rows of a coordinate section into an ``(n, 2)`` array ordered by id."""
     if not lines:
         raise _fail(path, f"{section} is empty (DIMENSION is {n})")
+    if len(lines) != n:  # before allocating anything of size n
+        raise _fail(path, f"{section} has {len(lines)} nodes but DIMENSION is {n}")
     coords = np.full((n, 2), np.nan)
     seen = np.zeros(n, bool)
     for lineno, raw in lines:
@@ -117,6 +137,15 @@ def _read_coords(path: Path, lines: list[tuple[int, str]], n: int, section: str)
 
 def _read_explicit(path: Path, lines: list[tuple[int, str]], n: int, fmt: str) -> np.ndarray:
     """Parse an ``EDGE_WEIGHT_SECTION`` of the given format into a symmetric int64 matrix."""
+    counts = {"FULL_MATRIX": n * n, "UPPER_ROW": n * (n - 1) // 2, "LOWER_ROW": n * (n - 1) // 2,
+              "UPPER_DIAG_ROW": n * (n + 1) // 2, "LOWER_DIAG_ROW": n * (n + 1) // 2}
+    found = sum(len(raw.split()) for _, raw in lines)
+    if found != counts[fmt]:  # before allocating the n x n matrix
+        raise _fail(
+            path,
+            f"EDGE_WEIGHT_SECTION ({fmt}) has {found} numbers, expected {counts[fmt]}"
+            f" for DIMENSION {n}",
+        )
     values: list[float] = []
     for lineno, raw in lines:
         for token in raw.split():
@@ -156,6 +185,8 @@ def _read_explicit(path: Path, lines: list[tuple[int, str]], n: int, fmt: str) -
 def read_tsplib(path: str | Path) -> TsplibInstance:
     """Read a symmetric TSPLIB ``.tsp`` file. Malformed input raises :class:`ProblemError`."""
     path = Path(path)
+    if path.is_dir():
+        raise ProblemError(f"{path}: is a directory, not a TSPLIB .tsp file")
     if not path.is_file():
         raise ProblemError(f"{path}: no such TSPLIB file")
     try:
@@ -205,6 +236,7 @@ def read_tsplib(path: str | Path) -> TsplibInstance:
         raise _fail(path, f"DIMENSION {header['DIMENSION']!r} is not an integer") from None
     if n < 3:
         raise _fail(path, f"DIMENSION {n} is too small (a tour needs at least 3 cities)")
+    check_dimension(n, str(path))
     ewt = header.get("EDGE_WEIGHT_TYPE", "").upper()
     name = header.get("NAME", path.stem).removesuffix(".tsp") or path.stem
     comment = header.get("COMMENT", "")

@@ -43,11 +43,126 @@ def check_choices(settings: Any) -> None:
 
 
 def check_positive(settings: Any, *names: str) -> None:
-    """One ConfigError line for a count that is not >= 1."""
+    """One ConfigError line for a count that is not an integer in 1..2**31-1."""
     for name in names:
         value = getattr(settings, name)
-        if value is not None and (isinstance(value, bool) or int(value) != value or value < 1):
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float) or int(value) != value:
             raise ConfigError(f"{name} must be an integer >= 1, got {value!r}")
+        if not 1 <= value <= 2**31 - 1:
+            raise ConfigError(f"{name}={value} is outside its range 1..2147483647")
+
+
+#: settings that are PRNG seeds: integers in 0..2**32-1
+SEED_FIELDS = ("seed", "world_seed")
+
+
+def check_types(settings: Any) -> None:
+    """One ConfigError line for a value of the wrong type (from a sweep file or the API),
+    a seed outside 0..2**32-1 or a non-finite or negative budget in seconds."""
+    import math
+    import typing
+
+    hints = typing.get_type_hints(type(settings))
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        hint = hints.get(f.name)
+        args = set(typing.get_args(hint)) or {hint}
+        if value is None:
+            if type(None) not in args:
+                raise ConfigError(f"{f.name} needs a value (got None)")
+            continue
+        if bool in args:
+            ok = isinstance(value, bool) or value in (0, 1)
+            want = "true or false"
+        elif int in args:
+            ok = not isinstance(value, bool) and (
+                isinstance(value, int) or (isinstance(value, float) and value.is_integer()))
+            want = "an integer"
+        elif float in args:
+            ok = (not isinstance(value, bool) and isinstance(value, int | float)
+                  and math.isfinite(value))
+            want = "a finite number"
+        elif str in args:
+            ok = isinstance(value, str)
+            want = "a string"
+        else:
+            continue
+        if not ok:
+            raise ConfigError(f"{f.name}={value!r} must be {want}")
+        if f.name in SEED_FIELDS and not 0 <= int(value) <= 2**32 - 1:
+            raise ConfigError(f"{f.name}={value} is outside its range 0..4294967295")
+        if f.name == "max_seconds" and not value > 0:
+            raise ConfigError(f"max_seconds must be > 0, got {value}")
+
+
+def check_settings(settings: Any, *positive: str) -> None:
+    """Types, choices and counts of a Settings object (one ConfigError line)."""
+    check_types(settings)
+    check_choices(settings)
+    check_positive(settings, *positive)
+
+
+def parse_overrides(text: str | None) -> dict[str, Any]:
+    """``"q0=0.9,use_elitist=true"`` -> ``{"q0": 0.9, "use_elitist": True}``."""
+    if not text:
+        return {}
+    out: dict[str, Any] = {}
+    for item in text.split(","):
+        if not item.strip():
+            continue
+        key, sep, raw = item.partition("=")
+        key, raw = key.strip(), raw.strip()
+        if not sep or not key:
+            raise ConfigError(f"params: {item!r} is not KEY=VALUE (e.g. 'q0=0.9,use_chaos=true')")
+        low = raw.lower()
+        if low in ("true", "yes", "on"):
+            out[key] = True
+        elif low in ("false", "no", "off"):
+            out[key] = False
+        else:
+            try:
+                out[key] = float(raw)
+            except ValueError:
+                raise ConfigError(f"params: {key}={raw!r} is not a number or true/false") from None
+    return out
+
+
+def params_with(base: Any, overrides: dict[str, Any], where: str = "") -> Any:
+    """``base`` Params with ``overrides``; every field an array of its default's dtype (so
+    settings stack into one batch; booleans stay booleans: 1/0 mean on/off). Unknown fields
+    are listed with the valid ones; values that are not numbers are one line."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    names = [f.name for f in dataclasses.fields(base)]
+    unknown = sorted(set(overrides) - set(names))
+    if unknown:
+        raise ConfigError(f"{where}unknown {type(base).__name__} field(s) {unknown}; valid: "
+                          f"{', '.join(names)}")
+    changes = {}
+    for name in names:
+        value = getattr(base, name)
+        dtype = jnp.asarray(value).dtype
+        if name in overrides:
+            value = overrides[name]
+            try:
+                np.asarray(value, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ConfigError(f"{where}{name}={value!r} is not a number") from None
+        changes[name] = jnp.asarray(value, dtype=dtype)
+    return base.replace(**changes)
+
+
+def warn_inactive(strategy: Any, params: Any, names: Any, where: str = "") -> None:
+    """Warn (one line each) about set Params fields that these switches leave unused."""
+    import warnings
+
+    dead = strategy.inactive_params(params)
+    for name in names:
+        if name in dead:
+            warnings.warn(f"{where}{name} has no effect unless {dead[name]}", stacklevel=3)
 
 
 @dataclasses.dataclass
@@ -87,6 +202,8 @@ class RunKind:
                 f"{where}unknown {self.name} setting(s) {unknown}; valid: {', '.join(valid)}")
         try:
             return self.settings(**values)
+        except TypeError as err:  # e.g. a Settings class without defaults for some field
+            raise ConfigError(f"{where}{err}") from None
         except ConfigError as err:
             if not where:
                 raise
@@ -121,6 +238,42 @@ def checkpointing_for(kind: str, settings: Any, directory: str | Path | None,
         raise ConfigError(f"--checkpoint-every must be >= 1, got {every}")
     info = {"kind": kind, "settings": settings_dict(settings), "checkpoint_every": every}
     return Checkpointing(directory, every=every, run_info=info)
+
+
+def check_out(out: str | None, files: tuple[str, ...] = ()) -> None:
+    """Refuse an output folder that is a file or not writable, before anything runs."""
+    if out is None:
+        return
+    from eaco_jax.errors import ConfigError
+
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise ConfigError(f"--out {folder} is an existing file; give a folder")
+    for name in files:
+        if (folder / name).is_dir():
+            raise ConfigError(f"--out {folder}: {folder / name} is a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / ".write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as err:
+        raise ConfigError(f"--out {folder} is not writable ({err.strerror}); choose another "
+                          "folder") from None
+
+
+def budget_of(s: Any, iterations: int | None) -> dict[str, Any]:
+    """The budget keywords of ``minimize`` from a Settings with ``max_evaluations`` /
+    ``max_seconds`` fields: ``max_evaluations`` (if set) replaces ``iterations``."""
+    budget: dict[str, Any] = {}
+    max_evals = getattr(s, "max_evaluations", None)
+    if max_evals is not None:
+        budget["max_evaluations"] = int(max_evals)
+    elif iterations is not None:
+        budget["iterations"] = int(iterations)
+    if getattr(s, "max_seconds", None) is not None:
+        budget["max_seconds"] = float(s.max_seconds)
+    return budget
 
 
 def settings_table(kind: RunKind) -> str:

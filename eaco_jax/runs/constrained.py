@@ -14,7 +14,19 @@ from typing import Any
 
 import numpy as np
 
-from eaco_jax.runs.base import Built, RunKind, check_positive, entered, setting
+from eaco_jax.runs.base import (
+    Built,
+    RunKind,
+    budget_of,
+    check_out,
+    check_settings,
+    entered,
+    params_with,
+    parse_overrides,
+    setting,
+    warn_inactive,
+)
+from eaco_jax.runs.tsp import PARAMS_HELP
 
 #: unconstrained test functions also accepted as the problem name (dimension 10)
 FUNCTIONS = ("sphere", "rosenbrock", "rastrigin", "ackley")
@@ -33,6 +45,8 @@ class ConstrainedSettings:
     iterations: int | None = setting(None, "iteration budget instead of --max-evaluations")
     repair_steps: int = setting(3, "gradient-repair steps per infeasible ant (0: none)")
     refine_ants: int = setting(4, "SQP refinement ants per iteration (0: derivative-free)")
+    max_seconds: float | None = setting(None, "stop after this many compute seconds")
+    params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json and convergence.png")
 
     def __post_init__(self) -> None:
@@ -40,7 +54,7 @@ class ConstrainedSettings:
 
         if self.method not in METHODS:
             raise ConfigError(f"method={self.method!r} is not one of {', '.join(METHODS)}")
-        check_positive(self, "ants", "archive_size", "max_evaluations", "iterations")
+        check_settings(self, "ants", "archive_size", "max_evaluations", "iterations")
         if self.iterations is not None and self.max_evaluations is not None:
             object.__setattr__(self, "max_evaluations", None)  # --iterations wins
         if self.repair_steps < 0 or not 0 <= self.refine_ants <= self.ants:
@@ -71,12 +85,11 @@ def build(s: ConstrainedSettings) -> Built:
         strategy = ContinuousEACO(num_ants=int(s.ants), archive_size=int(s.archive_size),
                                   constraint_method=s.method, repair_steps=int(s.repair_steps),
                                   refine_ants=int(s.refine_ants))
-        params = strategy.default_params(problem)
-    budget: dict[str, Any] = {"chunk_size": 50}
-    if s.iterations is not None:
-        budget["iterations"] = int(s.iterations)
-    else:
-        budget["max_evaluations"] = int(s.max_evaluations)
+        overrides = parse_overrides(s.params)
+        params = params_with(strategy.default_params(problem), overrides, "--params: ")
+        strategy.check_params(params, "--params: ")
+        warn_inactive(strategy, params, overrides, "--params: ")
+    budget: dict[str, Any] = {"chunk_size": 50, **budget_of(s, s.iterations)}
     if problem.f_star is not None:
         budget["target"] = problem.f_star + TARGET_TOLERANCE
     return Built(problem, strategy, params, budget, context=float64)
@@ -106,10 +119,11 @@ def run(s: ConstrainedSettings, *, progress: bool = False,
     """Solve the problem; returns the JSON record and writes ``s.out`` if set."""
     from eaco_jax.driver.minimize import minimize
 
+    check_out(s.out)
     built = build(s)
     with entered(built):
         result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
-                          checkpointing=checkpointing, **built.budget)
+                          checkpointing=checkpointing, params=built.params, **built.budget)
     prob = built.problem
     f = float(result.f)
     record: dict[str, Any] = {
@@ -120,7 +134,9 @@ def run(s: ConstrainedSettings, *, progress: bool = False,
         "f": f,
         "violation": float(result.violation),
         "feasible": bool(result.feasible),
+        "feasibility_tolerance": result.tolerance,
         "evaluations": int(np.asarray(result.evaluations)),
+        "max_evaluations": result.max_evaluations,
         "evaluations_to_target": evaluations_to_target(result.state),
         "f_star": prob.f_star,
         "error": None if prob.f_star is None else f - prob.f_star,

@@ -35,7 +35,7 @@ import numpy as np
 
 from eaco_jax.errors import ProblemError
 from eaco_jax.gait.render import ensure_headless_gl
-from eaco_jax.runs.base import Built, RunKind, check_choices, check_positive, setting
+from eaco_jax.runs.base import Built, RunKind, budget_of, check_out, check_settings, setting
 
 ensure_headless_gl()  # before anything imports mujoco: its GL backend is fixed at import
 
@@ -71,8 +71,12 @@ class GaitSettings:
     direction: float = setting(0.0, "desired walking direction in degrees, 0 = forward (+x)")
     slope: float = setting(0.0, "floor slope in degrees, uphill along +x")
     seed: int = setting(0, "random seed")
+    max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
+                                          "--iterations)")
+    max_seconds: float | None = setting(None, "stop after this many compute seconds")
     out: str | None = setting("out/gait", "folder for best_gait.json, history.csv, plots, video")
-    video: bool = setting(True, "render best_gait.mp4 offscreen")
+    video: bool | None = setting(None, "render best_gait.mp4 offscreen (default: only where a "
+                                 "display or a GPU exists)")
     init: str | None = setting(None, "warm start: search +/-15% of each range around this "
                                "stored gait (JSON)")
     impl: str = setting("auto", "MJX implementation: warp (MuJoCo Warp, CUDA), jax, or auto",
@@ -86,8 +90,7 @@ class GaitSettings:
                           "randomised worlds (seeds disjoint from the search)")
 
     def __post_init__(self) -> None:
-        check_choices(self)
-        check_positive(self, "ants", "iterations")
+        check_settings(self, "ants", "iterations", "max_evaluations")
         _check_robust(self.robust, self.trials, self.penalty)
 
 
@@ -99,7 +102,8 @@ class GaitEvalSettings:
     backend: str = setting("auto", "native, mjx or auto", choices=BACKENDS)
     horizon: float | None = setting(None, "seconds to simulate (default: the file's, else 20)")
     out: str | None = setting(None, "folder for gait_eval.json, joint_angles.png and the video")
-    video: bool = setting(True, "render best_gait.mp4 into --out")
+    video: bool | None = setting(None, "render best_gait.mp4 into --out (default: only where "
+                                 "a display or a GPU exists)")
     impl: str = setting("auto", "MJX implementation: warp (MuJoCo Warp, CUDA), jax, or auto",
                         choices=IMPLS)
     trials: int = setting(0, "replay under this many randomised worlds (seeds disjoint from "
@@ -109,7 +113,7 @@ class GaitEvalSettings:
                                  "the model's MJCF): it replays on plain mujoco")
 
     def __post_init__(self) -> None:
-        check_choices(self)
+        check_settings(self)
         _check_robust(0, self.trials, None)
 
 
@@ -150,7 +154,31 @@ def params_vector(data: dict[str, Any], problem: Any, source: str) -> np.ndarray
                          f"got {vec.size}")
     if not np.all(np.isfinite(vec)):
         raise ProblemError(f"{source}: parameters must be finite")
+    lo, hi = np.asarray(problem.lower, np.float64), np.asarray(problem.upper, np.float64)
+    slack = 1e-6 * np.maximum(hi - lo, 1e-12)
+    bad = np.flatnonzero((vec < lo - slack) | (vec > hi + slack))
+    if bad.size:
+        i = int(bad[0])
+        raise ProblemError(f"{source}: {names[i]}={float(vec[i]):g} is outside the walk engine's "
+                           f"range [{lo[i]:g}, {hi[i]:g}]")
     return vec
+
+
+def video_wanted(video: bool | None) -> bool:
+    """``video`` if given; by default only where a display or a GPU exists (a CPU renders
+    slower than it searches). Says so on stderr when it switches the video off."""
+    if video is not None:
+        return bool(video)
+    import os
+
+    import jax
+
+    if os.environ.get("DISPLAY") or jax.default_backend() == "gpu":
+        return True
+    print("note: no video by default on a CPU without a display; pass --video to render one "
+          f"offscreen (MUJOCO_GL={os.environ.get('MUJOCO_GL', 'egl')}: egl or osmesa need "
+          "libegl1 / libosmesa6)", file=sys.stderr)
+    return False
 
 
 def _stored(data: dict[str, Any], *keys: str) -> Any:
@@ -257,7 +285,7 @@ def build(s: GaitSettings) -> Built:
     strategy = ContinuousEACO(num_ants=ants, archive_size=max(2, (3 * ants) // 2),
                               refine_ants=0, repair_steps=0)
     return Built(search, strategy, strategy.default_params(search),
-                 {"iterations": int(s.iterations)}, extra=extra)
+                 budget_of(s, s.iterations), extra=extra)
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
@@ -268,6 +296,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     """Optimise a gait; write the outputs to ``s.out``; returns the JSON record."""
     from eaco_jax.driver.minimize import minimize
 
+    check_out(s.out)
     built = build(s)
     problem = built.extra["full_problem"]
     t0 = time.perf_counter()
@@ -283,6 +312,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
         "seed": int(s.seed),
         "iterations": int(result.iterations),
         "evaluations": int(np.asarray(result.evaluations)),
+        "stop_reason": result.stop_reason,
         **_metrics(sim),
         "search_fitness": float(-np.asarray(result.best_cost)),
         "params": problem.params_dict(best),
@@ -313,7 +343,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
                           keys=("best_fitness", "iter_mean_fitness"), ylabel="fitness [m]",
                           title=f"{problem.name}: fitness ({problem.horizon:g} s horizon)")
         files = write_trajectory_outputs(
-            folder, problem, sim, s.video,
+            folder, problem, sim, video_wanted(s.video),
             title=f"{problem.spec.name}: best gait, {sim['speed_mps']:.2f} m/s")
         record["files"] = {"best_gait": str(folder / "best_gait.json"),
                            "history": str(folder / "history.csv"),
@@ -339,6 +369,7 @@ def build_eval(s: GaitEvalSettings) -> Built:
 def run_eval(s: GaitEvalSettings, *, progress: bool = False,
              checkpointing: Any = None) -> dict[str, Any]:
     """Re-simulate a stored gait; returns the JSON record and writes ``s.out`` if set."""
+    check_out(s.out)
     built = build_eval(s)
     problem, vec = built.problem, built.extra["vector"]
     t0 = time.perf_counter()
@@ -365,7 +396,7 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
 
         folder = Path(s.out)
         files = write_trajectory_outputs(
-            folder, problem, sim, s.video,
+            folder, problem, sim, video_wanted(s.video),
             title=f"{problem.spec.name}: {Path(s.params_file).name}, {sim['speed_mps']:.2f} m/s")
         record["files"] = {"eval": str(folder / "gait_eval.json"), **files}
         write_json(folder / "gait_eval.json", record)

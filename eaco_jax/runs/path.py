@@ -11,7 +11,19 @@ from typing import Any
 
 import numpy as np
 
-from eaco_jax.runs.base import Built, RunKind, check_positive, entered, setting
+from eaco_jax.runs.base import (
+    Built,
+    RunKind,
+    budget_of,
+    check_out,
+    check_settings,
+    entered,
+    params_with,
+    parse_overrides,
+    setting,
+    warn_inactive,
+)
+from eaco_jax.runs.tsp import PARAMS_HELP
 
 
 @dataclasses.dataclass(frozen=True)
@@ -21,10 +33,14 @@ class PathSettings:
     ants: int = setting(32, "ants per iteration")
     iterations: int = setting(150, "colony iterations")
     seed: int = setting(0, "seed of the colony")
+    max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
+                                          "--iterations)")
+    max_seconds: float | None = setting(None, "stop after this many compute seconds")
+    params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json and plots")
 
     def __post_init__(self) -> None:
-        check_positive(self, "obstacles", "ants", "iterations")
+        check_settings(self, "obstacles", "ants", "iterations", "max_evaluations")
 
 
 def build(s: PathSettings) -> Built:
@@ -34,8 +50,11 @@ def build(s: PathSettings) -> Built:
     radius = (0.06, 0.12) if s.obstacles <= 12 else (0.03, 0.06)
     problem = random_environment(int(s.obstacles), seed=int(s.world_seed), radius=radius)
     strategy = PathEACO(num_ants=int(s.ants))
-    return Built(problem, strategy, strategy.default_params(problem),
-                 {"iterations": int(s.iterations)})
+    overrides = parse_overrides(s.params)
+    params = params_with(strategy.default_params(problem), overrides, "--params: ")
+    strategy.check_params(params, "--params: ")
+    warn_inactive(strategy, params, overrides, "--params: ")
+    return Built(problem, strategy, params, budget_of(s, s.iterations))
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
@@ -47,11 +66,12 @@ def run(s: PathSettings, *, progress: bool = False, checkpointing: Any = None) -
     """Solve one random obstacle world; returns the JSON record and writes ``s.out`` if set."""
     from eaco_jax.driver.minimize import minimize
 
+    check_out(s.out)
     built = build(s)
     problem = built.problem
     with entered(built):
         result = minimize(problem, built.strategy, seed=int(s.seed), progress=progress,
-                          checkpointing=checkpointing, **built.budget)
+                          checkpointing=checkpointing, params=built.params, **built.budget)
     best = np.asarray(result.best_solution)
     waypoints = problem.waypoints(best)
     length = float(result.best_cost)
@@ -65,6 +85,7 @@ def run(s: PathSettings, *, progress: bool = False, checkpointing: Any = None) -
         "waypoints": waypoints.tolist(),
         "iterations": result.iterations,
         "evaluations": int(result.evaluations),
+        "stop_reason": result.stop_reason,
         "seconds": result.seconds,
         "seconds_per_iteration": result.seconds_per_iteration,
         "history_best": result.history["best_cost"].tolist(),

@@ -14,11 +14,18 @@ import numpy as np
 from eaco_jax.runs.base import (
     Built,
     RunKind,
-    check_choices,
-    check_positive,
+    budget_of,
+    check_out,
+    check_settings,
     entered,
+    params_with,
+    parse_overrides,
     setting,
+    warn_inactive,
 )
+
+PARAMS_HELP = ("hyper-parameters and mechanism switches as KEY=VALUE,... (e.g. "
+               "'q0=0.9,use_elitist=true,use_chaos=true'; fields of the strategy's Params)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,11 +40,14 @@ class TspSettings:
                              choices=("auto", "erx", "pmx", "none"))
     mutation: str = setting("auto", "tour mutation ('auto': inversion with local search)",
                             choices=("auto", "inversion", "swap", "none"))
+    max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
+                                          "--iterations)")
+    max_seconds: float | None = setting(None, "stop after this many compute seconds")
+    params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
-        check_choices(self)
-        check_positive(self, "ants", "iterations")
+        check_settings(self, "ants", "iterations", "max_evaluations")
 
 
 def build(s: TspSettings) -> Built:
@@ -47,8 +57,11 @@ def build(s: TspSettings) -> Built:
     problem = load_tsplib(s.instance)
     strategy = GraphEACO(num_ants=int(s.ants), local_search=s.local_search,
                          crossover=s.crossover, mutation=s.mutation)
-    return Built(problem, strategy, strategy.default_params(problem),
-                 {"iterations": int(s.iterations)})
+    overrides = parse_overrides(s.params)
+    params = params_with(strategy.default_params(problem), overrides, "--params: ")
+    strategy.check_params(params, "--params: ")
+    warn_inactive(strategy, params, overrides, "--params: ")
+    return Built(problem, strategy, params, budget_of(s, s.iterations))
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
@@ -65,10 +78,11 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
     from eaco_jax.driver.minimize import minimize
     from eaco_jax.problems.tsp import tour_length
 
+    check_out(s.out)
     built = build(s)
     with entered(built):
         result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
-                          checkpointing=checkpointing, **built.budget)
+                          checkpointing=checkpointing, params=built.params, **built.budget)
     problem = built.problem
     tour = np.asarray(result.best_solution, dtype=np.int64)
     length = int(tour_length(np.asarray(problem.dist), tour))
@@ -83,10 +97,12 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
         "tour": tour.tolist(),
         "iterations": int(result.iterations),
         "evaluations": int(np.asarray(result.evaluations)),
+        "max_evaluations": result.max_evaluations,
+        "stop_reason": result.stop_reason,
         "seconds": float(result.seconds),
         "compile_seconds": float(result.compile_seconds),
         "seconds_per_iteration": float(result.seconds_per_iteration),
-        "history_best": np.asarray(result.history["best_cost"]).astype(np.int64).tolist(),
+        "history_best": np.asarray(result.history["best_cost"]).tolist(),
     }
     if problem.optimum is not None:
         record["gap_percent"] = 100.0 * (length / float(problem.optimum) - 1.0)

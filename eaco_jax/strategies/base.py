@@ -30,11 +30,15 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
+
+from eaco_jax.errors import ConfigError
 
 Array = jax.Array
 PyTree = Any
@@ -58,7 +62,7 @@ class State:
     """
 
     key: Array
-    params: PyTree
+    params: Any  # the strategy's Params pytree
     iteration: Array
     evaluations: Array
     best_solution: Array
@@ -90,6 +94,96 @@ def as_params(params: PyTree, dtype: Any = jnp.float32) -> PyTree:
         return a if a.dtype == jnp.bool_ else jnp.asarray(x, dtype)
 
     return jax.tree.map(leaf, params)
+
+
+# --------------------------------------------------------------------------- parameter ranges
+@dataclasses.dataclass(frozen=True)
+class Range:
+    """The documented range of one hyper-parameter (checked on the host before a run).
+
+    ``low``/``high`` are bounds (``None``: unbounded); ``open_low``/``open_high`` exclude
+    them; ``boolean`` fields take only True/False (1/0).
+    """
+
+    low: float | None = None
+    high: float | None = None
+    open_low: bool = False
+    open_high: bool = False
+    boolean: bool = False
+
+    def __str__(self) -> str:
+        if self.boolean:
+            return "True/False"
+        if self.low is not None and self.high is not None:
+            return (f"{'(' if self.open_low else '['}{self.low:g}, {self.high:g}"
+                    f"{')' if self.open_high else ']'}")
+        if self.low is not None:
+            return f"{'>' if self.open_low else '>='} {self.low:g}"
+        if self.high is not None:
+            return f"{'<' if self.open_high else '<='} {self.high:g}"
+        return "any finite number"
+
+    def bad(self, values: np.ndarray) -> np.ndarray:
+        """Mask of the entries of ``values`` outside the range."""
+        v = np.asarray(values)
+        if self.boolean:
+            return ~np.isin(v.astype(np.float64), (0.0, 1.0))
+        v = v.astype(np.float64)
+        out = ~np.isfinite(v)
+        if self.low is not None:
+            out |= (v <= self.low) if self.open_low else (v < self.low)
+        if self.high is not None:
+            out |= (v >= self.high) if self.open_high else (v > self.high)
+        return out
+
+
+#: shorthands for Params range declarations
+UNIT = Range(0.0, 1.0)  # a probability or fraction
+BOOL = Range(boolean=True)
+NONNEG = Range(0.0)
+POSITIVE = Range(0.0, open_low=True)
+AT_LEAST_ONE = Range(1.0)
+
+
+def _is_concrete(x: Any) -> bool:
+    return not isinstance(x, jax.core.Tracer)
+
+
+def check_ranges(params: Any, ranges: dict[str, Range], where: str = "") -> None:
+    """One :class:`ConfigError` line for the first concrete field outside its range.
+
+    Traced values (inside ``jit``/``vmap``) are skipped: only concrete values are checked.
+    Stacked params (a leading batch axis) are checked entry by entry.
+    """
+    if not dataclasses.is_dataclass(params):
+        return
+    cls = type(params).__name__
+    for f in dataclasses.fields(params):
+        value = getattr(params, f.name)
+        r = ranges.get(f.name)
+        if r is None or not _is_concrete(value):
+            continue
+        try:
+            arr = np.asarray(value)
+            bad = r.bad(arr)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{where}{cls}.{f.name}={value!r} is not a number "
+                              f"(range {r})") from None
+        if np.any(bad):
+            shown = arr.reshape(-1)[int(np.flatnonzero(bad.reshape(-1))[0])]
+            shown = shown.item() if hasattr(shown, "item") else shown
+            if isinstance(shown, float) and not math.isfinite(shown):
+                shown = repr(shown)
+            raise ConfigError(f"{where}{cls}.{f.name}={shown} is outside its range {r}")
+
+
+def ranges_table(params_cls: type) -> str:
+    """A Markdown table of a Params class's fields, defaults and ranges (for the docs)."""
+    ranges = getattr(params_cls, "RANGES", {})
+    rows = [f"| `{params_cls.__name__}` field | default | range |", "|---|---|---|"]
+    for f in dataclasses.fields(params_cls):
+        rows.append(f"| `{f.name}` | `{f.default!r}` | {ranges.get(f.name, '')} |")
+    return "\n".join(rows)
 
 
 def _jit_method(fn):
@@ -138,6 +232,25 @@ class Strategy:
         """The problem as this strategy needs it (checked, converted); called by ``init``."""
         return problem
 
+    def max_charge(self, problem: Any = None) -> int:
+        """The most evaluations one iteration can charge (``max_evaluations`` never starts an
+        iteration that could exceed the budget). Default: one colony."""
+        return int(self.num_ants)
+
+    def charge_note(self, problem: Any = None) -> str:
+        """How :meth:`max_charge` is made up, for messages."""
+        return f"{self.num_ants} ants"
+
+    def check_params(self, params: Any, where: str = "") -> None:
+        """Check concrete hyper-parameters against their documented ranges (``RANGES`` on the
+        Params class); one :class:`ConfigError` line naming field, value and range."""
+        check_ranges(params, getattr(type(params), "RANGES", {}), where)
+
+    def inactive_params(self, params: Any) -> dict[str, str]:
+        """Params fields that have no effect under these switches (concrete ``params``):
+        name -> the switch that would make it act. Default: none."""
+        return {}
+
     # ----------------------------------------------------------------- public, jitted
     def init(self, key: Array, problem: Any, params: PyTree | None = None) -> State:
         """Fresh colony state for ``problem`` (nothing is evaluated).
@@ -147,6 +260,7 @@ class Strategy:
         problem = self.prepare(problem)
         if params is None:
             params = self.default_params(problem)
+        self.check_params(params)
         return self._init_jit(key, problem, params)
 
     @_jit_method

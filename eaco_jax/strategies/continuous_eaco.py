@@ -28,9 +28,10 @@ Evaluation accounting: every point whose objective/constraints are computed cost
 evaluation: the driver's colony (``num_ants``), the initial archive (``archive_size``), each
 repair step (1 per step per ant) and the refinement's derivatives (``dim + 1`` per iteration,
 what a finite-difference gradient would cost; autodiff Hessians are charged the same), and a
-chaotic restart (``archive_size``). ``minimize(max_evaluations=N)`` runs ``N // num_ants``
-iterations, so these extra evaluations come on top of N; ``state.evaluations`` has the true
-count and ``state.target_evaluations`` the count at which f - f* <= 1e-4 was first met.
+chaotic restart (``archive_size``). ``minimize(max_evaluations=N)`` is a hard cap on this
+count: the driver starts an iteration only if its worst case (:meth:`ContinuousEACO.max_charge`)
+fits in what is left. ``state.evaluations`` has the charged count and
+``state.target_evaluations`` the count at which f - f* <= 1e-4 was first met.
 
 Precision: the colony works in the problem's dtype (float64 when the problem was built inside
 :func:`eaco_jax.problems.float64`); ``best_cost`` (float32, the driver's field) is the best
@@ -40,7 +41,7 @@ feasible objective, +inf until a feasible point is found; ``best_f`` keeps full 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -52,7 +53,17 @@ from eaco_jax.ops.chaos import logistic_step
 from eaco_jax.ops.real_ops import laplace_crossover_sample, power_mutation_sample
 from eaco_jax.problems.base import Evaluation
 from eaco_jax.problems.constrained import ConstrainedProblem
-from eaco_jax.strategies.base import State, Strategy, as_params, base_fields
+from eaco_jax.strategies.base import (
+    AT_LEAST_ONE,
+    NONNEG,
+    POSITIVE,
+    UNIT,
+    Range,
+    State,
+    Strategy,
+    as_params,
+    base_fields,
+)
 
 Array = jax.Array
 
@@ -83,6 +94,16 @@ class ContinuousParams:
     p_repair: Array = 1.0  # probability an infeasible ant gets gradient repair
     repair_margin: Array = 1e-10  # repair aims this far inside (fraction of mean box width)
     refine_active: Array = 1e-3  # inequality counts as active within this distance (box frac.)
+
+    #: documented ranges, checked on the host before a run (concrete values only)
+    RANGES: ClassVar[dict[str, Range]] = {
+        "q0": UNIT, "rho": POSITIVE, "locality": POSITIVE, "p_crossover": UNIT,
+        "p_mutation": UNIT, "laplace_a": Range(), "laplace_b": POSITIVE,
+        "power_index": POSITIVE, "penalty": NONNEG, "eps_fraction": UNIT,
+        "eps_cutoff": POSITIVE, "eps_exponent": POSITIVE, "chaos_rate": UNIT,
+        "chaos_strength": NONNEG, "chaos_patience": NONNEG, "restart_patience": AT_LEAST_ONE,
+        "p_repair": UNIT, "repair_margin": NONNEG, "refine_active": NONNEG,
+    }
 
 
 @struct.dataclass
@@ -122,6 +143,45 @@ class ContinuousEACO(Strategy):
 
     def default_params(self, problem: Any = None) -> ContinuousParams:
         return ContinuousParams()
+
+    def max_charge(self, problem: Any = None) -> int:
+        """One colony, the refinement's ``dim + 1`` and every repair step of every ant."""
+        n = int(getattr(problem, "dim", 0))
+        extra = n + 1 if self.refine_ants > 0 else 0
+        if self.repair_steps > 0 and problem is not None and _num_constraints(problem) > 0:
+            extra += self.repair_steps * self.num_ants
+        return self.num_ants + extra
+
+    def charge_note(self, problem: Any = None) -> str:
+        parts = [f"{self.num_ants} ants"]
+        if self.refine_ants > 0:
+            parts.append(f"refinement dim + 1 = {int(getattr(problem, 'dim', 0)) + 1}")
+        if self.repair_steps > 0 and problem is not None and _num_constraints(problem) > 0:
+            parts.append(f"repair up to {self.repair_steps} x {self.num_ants}")
+        return " + ".join(parts)
+
+    def inactive_params(self, params: ContinuousParams) -> dict[str, str]:
+        """Fields without effect under these switches -> the switch that makes them act."""
+
+        def positive(name: str) -> bool:
+            return bool(jnp.all(jnp.asarray(getattr(params, name)) > 0))
+
+        dead: dict[str, str] = {}
+        rules = (
+            (("eps_fraction", "eps_cutoff", "eps_exponent"),
+             self.constraint_method == "epsilon", "constraint_method='epsilon'"),
+            (("penalty",), self.constraint_method == "penalty", "constraint_method='penalty'"),
+            (("p_repair",), self.repair_steps > 0, "repair_steps > 0"),
+            (("repair_margin",), self.repair_steps > 0 or self.refine_ants > 0,
+             "repair_steps > 0 or refine_ants > 0"),
+            (("refine_active",), self.refine_ants > 0, "refine_ants > 0"),
+            (("laplace_a", "laplace_b"), positive("p_crossover"), "p_crossover > 0"),
+            (("power_index",), positive("p_mutation"), "p_mutation > 0"),
+        )
+        for names, active, switch in rules:
+            if not active:
+                dead.update(dict.fromkeys(names, switch))
+        return dead
 
     # ----------------------------------------------------------------- helpers
     def _order(self, f: Array, v: Array, params: ContinuousParams, eps: Array) -> Array:

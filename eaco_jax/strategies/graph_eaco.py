@@ -65,7 +65,19 @@ from eaco_jax.ops.construction import (
     tour_lengths,
 )
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
-from eaco_jax.strategies.base import State, Strategy, as_params, base_fields, record_best
+from eaco_jax.strategies.base import (
+    AT_LEAST_ONE,
+    BOOL,
+    NONNEG,
+    POSITIVE,
+    UNIT,
+    Range,
+    State,
+    Strategy,
+    as_params,
+    base_fields,
+    record_best,
+)
 
 Array = jax.Array
 
@@ -110,6 +122,22 @@ class GraphParams:
     use_restart: Array = True
     use_adaptive_rates: Array = True  # self-adaptive crossover / mutation rates
     init_at_tau_max: Array = True
+
+    #: documented ranges, checked on the host before a run (concrete values only)
+    RANGES: ClassVar[dict[str, Range]] = {
+        "alpha": Range(0.0, 10.0), "beta": Range(0.0, 20.0), "rho": Range(0.0, 1.0, True),
+        "q0": UNIT, "alpha_g": UNIT, "sigma": NONNEG, "q": POSITIVE,
+        "p_best": Range(0.0, 1.0, True, True), "branching": NONNEG,
+        "chaos_strength": Range(0.0, 1.0, open_high=True), "p_crossover": UNIT,
+        "p_mutation": UNIT, "restart_after": AT_LEAST_ONE, "restart_branching": NONNEG,
+        "gb_every": AT_LEAST_ONE, "stagnation_window": POSITIVE,
+        "evaporation_slowdown": Range(0.0, 1.0, open_high=True),
+        **{name: BOOL for name in (
+            "use_restart_best", "use_local_update", "use_global_update", "use_elitist",
+            "use_deposit_condition", "use_adaptive_weight", "use_bounds", "use_chaos",
+            "use_evaporation_schedule", "use_restart", "use_adaptive_rates",
+            "init_at_tau_max")},
+    }
 
 
 @struct.dataclass
@@ -178,6 +206,34 @@ class GraphEACO(Strategy):
                 rho=0.02, alpha_g=0.02, branching=float((k + 1) // 2), restart_after=250.0,
                 restart_branching=1.00001, use_restart_best=True, gb_every=25.0)
         return as_params(params)
+
+    def inactive_params(self, params: GraphParams) -> dict[str, str]:
+        """Fields without effect under these switches -> the switch that makes them act."""
+
+        def on(name: str) -> bool:
+            return bool(jnp.all(jnp.asarray(getattr(params, name))))
+
+        dead: dict[str, str] = {}
+        rules = (
+            (("rho", "q"), on("use_local_update") or on("use_elitist"),
+             "use_local_update or use_elitist"),
+            (("sigma", "use_deposit_condition", "use_adaptive_weight"), on("use_elitist"),
+             "use_elitist"),
+            (("chaos_strength",), on("use_chaos"), "use_chaos"),
+            (("alpha_g", "gb_every"), on("use_global_update"), "use_global_update"),
+            (("restart_after", "restart_branching"), on("use_restart"), "use_restart"),
+            (("stagnation_window", "evaporation_slowdown"), on("use_evaporation_schedule"),
+             "use_evaporation_schedule"),
+            (("p_best", "branching"), on("use_bounds"), "use_bounds"),
+            (("p_crossover",), self.crossover != "none", "crossover='erx' or 'pmx'"),
+            (("p_mutation",), self.mutation != "none", "mutation='inversion' or 'swap'"),
+            (("use_adaptive_rates",), self.crossover != "none" or self.mutation != "none",
+             "a crossover or mutation operator"),
+        )
+        for names, active, switch in rules:
+            if not active:
+                dead.update(dict.fromkeys(names, switch))
+        return dead
 
     # ------------------------------------------------------------------ init
     def prepare(self, problem: Any) -> Any:

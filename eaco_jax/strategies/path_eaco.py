@@ -17,6 +17,7 @@ the path analogue of 2-opt, applied to every ant when ``shortcut`` is on.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, ClassVar  # noqa: F401  (Any: the State annotations, for pdoc)
 
 import jax
 import jax.numpy as jnp
@@ -25,7 +26,18 @@ from flax import struct
 from eaco_jax.ops import chaos, pheromone
 from eaco_jax.ops.construction import choice_weights
 from eaco_jax.problems.path_planning import GOAL, START, PathPlanning
-from eaco_jax.strategies.base import State, Strategy, as_params, base_fields, record_best
+from eaco_jax.strategies.base import (
+    BOOL,
+    NONNEG,
+    POSITIVE,
+    UNIT,
+    Range,
+    State,
+    Strategy,
+    as_params,
+    base_fields,
+    record_best,
+)
 
 Array = jax.Array
 
@@ -48,6 +60,15 @@ class PathParams:
     use_chaos: Array = True
     use_shortcut: Array = True  # string-pulling local search on every ant
     use_adaptive_weight: Array = True  # Eq. 5 adaptive deposit weights (else equal weights)
+
+    #: documented ranges, checked on the host before a run (concrete values only)
+    RANGES: ClassVar[dict[str, Range]] = {
+        "alpha": Range(0.0, 10.0), "beta": Range(0.0, 20.0), "rho": Range(0.0, 1.0, True),
+        "q0": UNIT, "q": POSITIVE, "sigma": NONNEG, "p_best": Range(0.0, 1.0, True, True),
+        "p_crossover": UNIT, "chaos_strength": Range(0.0, 1.0, open_high=True),
+        "stagnation_window": POSITIVE, "evaporation_slowdown": Range(0.0, 1.0, open_high=True),
+        "use_chaos": BOOL, "use_shortcut": BOOL, "use_adaptive_weight": BOOL,
+    }
 
 
 @struct.dataclass
@@ -73,6 +94,15 @@ class PathEACO(Strategy):
 
     def default_params(self, problem: PathPlanning | None = None) -> PathParams:
         return as_params(PathParams())
+
+    def inactive_params(self, params: PathParams) -> dict[str, str]:
+        """Fields without effect under these switches -> the switch that makes them act."""
+        dead: dict[str, str] = {}
+        if not bool(jnp.all(jnp.asarray(params.use_chaos))):
+            dead["chaos_strength"] = "use_chaos"
+        if not bool(jnp.all(jnp.asarray(params.evaporation_slowdown) > 0)):
+            dead["stagnation_window"] = "evaporation_slowdown > 0"
+        return dead
 
     def _init(self, key: Array, problem: PathPlanning, params: PathParams) -> PathState:
         n = problem.n

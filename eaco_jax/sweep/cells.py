@@ -6,12 +6,13 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import warnings
 from typing import Any
 
-import jax.numpy as jnp
 import numpy as np
 
 from eaco_jax.errors import ConfigError
+from eaco_jax.runs.base import params_with
 from eaco_jax.sweep.spec import seeds_of, settings_list
 
 #: settings a sweep sets itself (seeds from the spec, outputs in the sweep folder)
@@ -39,8 +40,11 @@ def param_fields(params: Any) -> set[str]:
 
 
 def expand(spec: dict[str, Any], kind: Any) -> list[Cell]:
-    """Every cell of the sweep, each checked (settings built, params known and finite) before
-    anything runs; swept keys that are Params fields go to ``params``, the rest to ``args``."""
+    """Every cell of the sweep, each checked before anything runs: settings built, params
+    known, numbers, inside their documented ranges; swept keys that are Params fields go to
+    ``params``, the rest to ``args``. A swept Params field that the cells' switches leave
+    unused everywhere is refused (naming the switch); unused in some cells, it is warned about.
+    Params fields may also be fixed in ``args`` (they apply to every cell)."""
     base_args = dict(spec.get("args") or {})
     seeds = seeds_of(spec)
     settings_names = {f.name for f in dataclasses.fields(kind.settings)}
@@ -48,17 +52,25 @@ def expand(spec: dict[str, Any], kind: Any) -> list[Cell]:
         if key in RESERVED:
             raise ConfigError(f"sweep args cannot set {key!r} (seeds come from 'seeds', "
                               "outputs go to the sweep folder)")
+    base_params = {k: v for k, v in base_args.items() if k not in settings_names}
+    base_args = {k: v for k, v in base_args.items() if k in settings_names}
     base = kind.build(kind.make_settings(base_args, where="sweep args: "))
     traced = param_fields(base.params)
     valid = sorted((settings_names - set(RESERVED)) | traced)
+    unknown = sorted(set(base_params) - traced)
+    if unknown:
+        raise ConfigError(f"sweep args: unknown key(s) {unknown}; valid: {', '.join(valid)}")
+    built_for: dict[str, Any] = {json.dumps(base_args, sort_keys=True, default=str): base}
     cells = []
+    dead_in: dict[str, list[str]] = {}
+    swept_in: dict[str, int] = {}
     for index, values in enumerate(settings_list(spec)):
         where = f"sweep cell {index} {json.dumps(values, default=str)}: "
         unknown = sorted(k for k in values if k not in traced and
                          (k not in settings_names or k in RESERVED))
         if unknown:
             raise ConfigError(f"{where}unknown key(s) {unknown}; valid: {', '.join(valid)}")
-        params = {k: v for k, v in values.items() if k in traced}
+        params = {**base_params, **{k: v for k, v in values.items() if k in traced}}
         for name, value in params.items():
             try:
                 finite = np.isfinite(np.asarray(value, dtype=np.float64)).all()
@@ -67,11 +79,31 @@ def expand(spec: dict[str, Any], kind: Any) -> list[Cell]:
             if not finite:
                 raise ConfigError(f"{where}{name}={value!r} is not finite")
         args = {**base_args, **{k: v for k, v in values.items() if k not in traced}}
-        kind.make_settings(args, where=where)  # every cell checked before the first runs
-        ident = json.dumps([values, args, seeds, spec.get("command"), spec.get("kind")],
-                           sort_keys=True, default=str)
+        settings = kind.make_settings(args, where=where)  # every cell checked before any runs
+        key = json.dumps(args, sort_keys=True, default=str)
+        if key not in built_for:
+            built_for[key] = kind.build(settings)
+        built = built_for[key]
+        if built.strategy is not None and dataclasses.is_dataclass(built.params):
+            cell_params = with_params(built.params, params)
+            built.strategy.check_params(cell_params, where=where)
+            dead = built.strategy.inactive_params(cell_params)
+            for name in values:
+                if name in traced:
+                    swept_in[name] = swept_in.get(name, 0) + 1
+                    if name in dead:
+                        dead_in.setdefault(name, []).append(dead[name])
+        ident = json.dumps([values, args, seeds, spec.get("command"), spec.get("kind"),
+                            base_params], sort_keys=True, default=str)
         digest = hashlib.sha256(ident.encode()).hexdigest()[:8]
         cells.append(Cell(f"c{index:03d}-{digest}", values, args, params))
+    for name, switches in dead_in.items():
+        if len(switches) == swept_in[name]:
+            raise ConfigError(
+                f"sweep key {name!r} has no effect in any cell: it acts only with "
+                f"{switches[0]} (set that in args or the cells, or drop {name!r})")
+        warnings.warn(f"sweep key {name!r} has no effect in {len(switches)} of {swept_in[name]} "
+                      f"cells (it acts only with {switches[0]})", stacklevel=2)
     return cells
 
 
@@ -88,11 +120,4 @@ def with_params(base: Any, overrides: dict[str, Any]) -> Any:
 
     So all cells stack into one batch (booleans stay booleans: 1/0 in a file mean on/off).
     """
-    changes = {}
-    for f in dataclasses.fields(base):
-        value = getattr(base, f.name)
-        dtype = jnp.asarray(value).dtype
-        if f.name in overrides:
-            value = overrides[f.name]
-        changes[f.name] = jnp.asarray(value, dtype=dtype)
-    return base.replace(**changes)
+    return params_with(base, overrides)

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from eaco_jax.errors import ConfigError
+from eaco_jax.errors import ConfigError, Interrupted
 from eaco_jax.sweep.local import plan, read_cell, run_local
 from eaco_jax.sweep.report import write_tables
 from eaco_jax.sweep.spec import seeds_of
@@ -33,7 +33,16 @@ def run_sweep(
     (out / "spec.json").write_text(json.dumps(spec, indent=1, default=str) + "\n")
     t0 = time.perf_counter()
     if backend == "local":
-        run_local(kind, todo, seeds, out, every=every, progress=progress, total=len(cells))
+        try:
+            run_local(kind, todo, seeds, out, every=every, progress=progress, total=len(cells))
+        except Interrupted as err:
+            finished = sum(read_cell(out, c) is not None for c in cells)
+            hint = ("; the interrupted group resumes from its checkpoint" if every else
+                    "; add checkpoint_every to the spec to resume inside a group")
+            raise Interrupted(
+                f"sweep interrupted: {finished} of {len(cells)} cells finished in {out}; run "
+                f"the same sweep again to continue (finished cells are skipped{hint})",
+                err.result) from None
     else:
         from eaco_jax.sweep.ray import run_cells_on_ray
 

@@ -84,8 +84,14 @@ def seeds_of(spec: dict[str, Any]) -> list[int]:
     if isinstance(seeds, int) and not isinstance(seeds, bool):
         if seeds < 1:
             raise ConfigError(f"seeds must be >= 1, got {seeds}")
+        if seeds > 2**20:
+            raise ConfigError(f"seeds: {seeds} seeds is more than 2**20; list the seeds you want")
         return list(range(seeds))
-    if isinstance(seeds, list) and seeds and all(isinstance(s, int) for s in seeds):
+    if isinstance(seeds, list) and seeds and all(
+            isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+        bad = [s for s in seeds if not 0 <= s <= 2**32 - 1]
+        if bad:
+            raise ConfigError(f"seeds: {bad[0]} is outside the range 0..4294967295")
         return [int(s) for s in seeds]
     raise ConfigError(f"seeds must be a positive int or a list of ints, got {seeds!r}")
 

@@ -1,0 +1,283 @@
+"""Try every bad input and fault we know of; write the message each gets to docs/bad_inputs.md.
+
+    python experiments/bad_inputs.py            # about two minutes on a CPU
+
+Each row: what was tried, how (API / CLI / file), and the first line the user sees (the
+error's message, a warning, or the relevant result fields for faults that are not errors).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+from typer.testing import CliRunner
+
+import eaco_jax as ea
+from eaco_jax.cli import app
+from eaco_jax.problems import TSP, ConstrainedProblem, load_tsplib
+from eaco_jax.strategies import GraphEACO
+
+ROWS: list[tuple[str, str, str]] = []
+TMP = Path(tempfile.mkdtemp())
+RUNNER = CliRunner()
+
+
+def record(what: str, how: str, fn: Callable[[], object]) -> None:
+    """Run ``fn``; record its exception's message, its warnings or its return value."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            out = fn()
+            text = "" if out is None else str(out)
+        except BaseException as err:  # noqa: BLE001 - what the user sees is the point
+            text = f"{type(err).__name__}: {err}"
+    notes = [f"warning: {w.message}" for w in caught
+             if issubclass(w.category, UserWarning) and "jax" not in str(w.filename).split(
+                 "site-packages")[-1][:5]]
+    text = " / ".join([t for t in [text, *notes[:2]] if t])
+    ROWS.append((what, how, text.replace("\n", " ").replace("|", "\\|")[:400]))
+    print(f"- {what}: {text[:160]}")
+
+
+def cli(*args: str) -> str:
+    res = RUNNER.invoke(app, ["--no-compile-cache", *args])
+    lines = [ln for ln in res.output.strip().splitlines() if ln.strip()]
+    return f"exit {res.exit_code}: " + (lines[-1] if lines else "")
+
+
+def write_tsp(name: str, body: str) -> str:
+    path = TMP / name
+    path.write_text(body)
+    return str(path)
+
+
+def main() -> None:
+    eil51 = load_tsplib("eil51")
+    burma = load_tsplib("burma14")
+    g = GraphEACO(num_ants=4, local_search="none")
+
+    # ------------------------------------------------------------ budgets and reported numbers
+    def budget(name: str, n: int) -> str:
+        r = ea.minimize(ea.problems.cec2006(name), max_evaluations=n, seed=0)
+        return f"charged {int(r.evaluations)} <= {n}; stop_reason={r.stop_reason}"
+    record("`minimize(cec2006('g06'), max_evaluations=5000)`", "API", lambda: budget("g06", 5000))
+    record("`max_evaluations=50` (below one iteration's charge)", "API",
+           lambda: ea.minimize(ea.problems.cec2006("g06"), max_evaluations=50))
+
+    def unit_square() -> str:
+        xy = np.random.default_rng(0).uniform(0, 1, (200, 2))
+        r = ea.minimize(TSP.from_coords(xy), GraphEACO(num_ants=10), seed=0, iterations=20)
+        return f"best_cost {float(r.best_cost):.3f} (real distances; was 0 with EUC_2D rounding)"
+    record("`TSP.from_coords` on 200 points in the unit square", "API", unit_square)
+
+    def long_tours() -> str:
+        rng = np.random.default_rng(1)
+        d = np.triu(rng.integers(500_000, 1_000_000, (60, 60)), 1)
+        d = d + d.T
+        p = TSP.from_distance_matrix(d)
+        tours = np.stack([rng.permutation(60) for _ in range(200)])
+        exact = np.array([d[t, np.roll(t, -1)].sum() for t in tours])
+        return f"{int((p.evaluate(tours) != exact).sum())} of 200 tour lengths > 2**24 off"
+    record("tours longer than 2**24 (integer distances)", "API", long_tours)
+    record("`TSP.evaluate` with a tour of 50 cities on eil51", "API",
+           lambda: eil51.evaluate(np.arange(50)[None]))
+    record("`TSP.evaluate` with city id 51 on eil51", "API",
+           lambda: eil51.evaluate(np.r_[np.arange(50), 51][None]))
+    record("distance matrix with integers >= 2**24", "API",
+           lambda: TSP.from_distance_matrix(np.array([[0, 2**25, 1], [2**25, 0, 1], [1, 1, 0]])))
+
+    def vessel():
+        def f(x):
+            return (0.6224 * x[0] * x[2] * x[3] + 1.7781 * x[1] * x[2] ** 2
+                    + 3.1661 * x[0] ** 2 * x[3] + 19.84 * x[0] ** 2 * x[2])
+
+        def gg(x):
+            return jnp.stack([-x[0] + 0.0193 * x[2], -x[1] + 0.00954 * x[2],
+                              -jnp.pi * x[2] ** 2 * x[3] - 4 / 3 * jnp.pi * x[2] ** 3 + 1296000.0,
+                              x[3] - 240.0])
+        return ConstrainedProblem(f, gg, lower=[0.0625, 0.0625, 10, 10],
+                                  upper=[6.1875, 6.1875, 200, 200], name="vessel")
+
+    def vessel32() -> str:
+        r = ea.minimize(vessel(), seed=0, max_evaluations=20_000, precision="float32")
+        return (f"f={float(r.f):.4f} violation={float(r.violation):.3g} "
+                f"feasible={bool(r.feasible)}")
+    record("pressure vessel in float32 (`precision='float32'`)", "API", vessel32)
+
+    def vessel_auto() -> str:
+        r = ea.minimize(vessel(), seed=0, max_evaluations=20_000)
+        return (f"precision={r.precision} f={float(r.f):.4f} violation={float(r.violation):.3g} "
+                f"feasible={bool(r.feasible)}")
+    record("pressure vessel, default precision", "API", vessel_auto)
+
+    def mixed() -> object:
+        with ea.problems.float64():
+            p = ea.problems.cec2006("g06")
+        return ea.minimize(p, seed=0, max_evaluations=500, precision="float32")
+    record("problem built in `float64()`, run with `precision='float32'`", "API", mixed)
+
+    def outside64() -> str:
+        with ea.problems.float64():
+            p = ea.problems.cec2006("g06")
+        r = ea.minimize(p, seed=0, max_evaluations=500)
+        return f"precision={r.precision} (kept float64 outside the scope)"
+    record("problem built in `float64()`, run outside it", "API", outside64)
+    record("objective NaN everywhere", "API", lambda: ea.minimize(ConstrainedProblem(
+        lambda x: jnp.nan * x[0], lower=[0.0, 0.0], upper=[1.0, 1.0], name="broken"),
+        seed=0, iterations=4))
+
+    # ------------------------------------------------------------ hyper-parameters
+    for field, value in (("rho", 1.5), ("q0", 1.5), ("alpha", -1.0), ("beta", float("nan"))):
+        record(f"`GraphEACO` with `{field}={value}`", "API", lambda f=field, v=value: ea.minimize(
+            burma, g, params=g.default_params(burma).replace(**{f: v}), iterations=2))
+    record("`--params q0=1.5`", "CLI", lambda: cli("tsp", "burma14", "--params", "q0=1.5"))
+    record("`--params bogus=1`", "CLI", lambda: cli("tsp", "burma14", "--params", "bogus=1"))
+    record("`--params q0=abc`", "CLI", lambda: cli("tsp", "burma14", "--params", "q0=abc"))
+    record("`--params rho=0.1` (no LS defaults: rho unused)", "CLI",
+           lambda: cli("tsp", "burma14", "--local-search", "none", "--iterations", "3",
+                       "--quiet", "--params", "rho=0.1"))
+    from eaco_jax.sweep import plan
+    base = {"command": "tsp", "args": {"instance": "burma14", "ants": 4, "iterations": 2,
+                                       "local_search": "none"}, "seeds": 1}
+    record("sweep cell `{q0: 1.5}`", "sweep", lambda: plan({**base, "cells": [{"q0": 1.5}]}))
+    record("sweep cell `{bogus_key: 1}`", "sweep",
+           lambda: plan({**base, "cells": [{"bogus_key": 1}]}))
+    record("sweep cell `{q0: abc}`", "sweep", lambda: plan({**base, "cells": [{"q0": "abc"}]}))
+    record("sweep cell `{ants: abc}`", "sweep",
+           lambda: plan({**base, "cells": [{"ants": "abc"}]}))
+    record("sweep `rho` over 0.05/0.2/0.5 with default switches", "sweep",
+           lambda: plan({**base, "grid": {"rho": [0.05, 0.2, 0.5]}}))
+    record("sweep seeds `[-1]`", "sweep", lambda: plan({**base, "seeds": [-1]}))
+
+    # ------------------------------------------------------------ command line values
+    record("`--seed 99999999999999999999`", "CLI",
+           lambda: cli("tsp", "burma14", "--seed", "99999999999999999999"))
+    record("`--ants 1000000000`", "CLI", lambda: cli("tsp", "eil51", "--ants", "1000000000"))
+    record("`--ants 0`", "CLI", lambda: cli("tsp", "burma14", "--ants", "0"))
+    record("`--max-seconds -1`", "CLI", lambda: cli("tsp", "burma14", "--max-seconds", "-1"))
+    record("`--max-evaluations 2` on tsp", "CLI",
+           lambda: cli("tsp", "burma14", "--max-evaluations", "2"))
+    outfile = TMP / "result.json"
+    outfile.write_text("{}")
+    record("`--out` pointing at an existing file", "CLI",
+           lambda: cli("tsp", "burma14", "--out", str(outfile)))
+    record("`--checkpoint-every 5` without `--checkpoint-dir`", "CLI",
+           lambda: cli("tsp", "burma14", "--checkpoint-every", "5"))
+    record("`eaco --version`", "CLI", lambda: cli("--version"))
+    record("`eaco resume /nonexistent`", "CLI", lambda: cli("resume", "/nonexistent"))
+    record("`minimize(chunk_size=0)`", "API", lambda: ea.minimize(burma, g, chunk_size=0))
+    record("`minimize(iterations=0)`", "API", lambda: ea.minimize(burma, g, iterations=0))
+    record("`minimize(target=nan)`", "API", lambda: ea.minimize(burma, g, target=float("nan")))
+    record("`minimize(precision='half')`", "API", lambda: ea.minimize(burma, g, precision="half"))
+
+    # ------------------------------------------------------------ files
+    record("TSPLIB `DIMENSION: 2000000000`", "file", lambda: load_tsplib(write_tsp(
+        "huge.tsp", "NAME: huge\nDIMENSION: 2000000000\nEDGE_WEIGHT_TYPE: EUC_2D\n"
+        "NODE_COORD_SECTION\n1 0 0\n2 1 1\n3 2 2\nEOF\n")))
+    record("TSPLIB `DIMENSION: 2e9`", "file", lambda: load_tsplib(write_tsp(
+        "huge2.tsp", "NAME: h\nDIMENSION: 2e9\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n"
+        "1 0 0\nEOF\n")))
+    record("TSPLIB with fewer rows than DIMENSION", "file", lambda: load_tsplib(write_tsp(
+        "short.tsp", "NAME: s\nDIMENSION: 5\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n"
+        "1 0 0\n2 1 1\n3 2 2\nEOF\n")))
+    folder = TMP / "folder.tsp"
+    folder.mkdir()
+    record("a directory given as a `.tsp` file", "CLI", lambda: cli("tsp", str(folder)))
+    record("a missing `.tsp` file", "CLI", lambda: cli("tsp", str(TMP / "missing.tsp")))
+    gait_file = TMP / "gait.json"
+
+    def bad_gait() -> str:
+        from eaco_jax.problems.gait import make_gait_problem
+        p = make_gait_problem("nao", backend="native", horizon=0.5)
+        params = {n: float(v) for n, v in zip(p.param_names, np.asarray(
+            (p.lower + p.upper) / 2), strict=True)}
+        params["step_length"] = 50.0
+        gait_file.write_text(json.dumps({"robot": "nao", "params": params}))
+        return cli("gait-eval", str(gait_file), "--horizon", "0.5", "--quiet")
+    record("gait file with `step_length: 50.0`", "CLI", bad_gait)
+
+    # ------------------------------------------------------------ checkpoints
+    ck = TMP / "ck"
+
+    def run_ck(**kw):
+        return ea.minimize(burma, g, seed=0, iterations=20, chunk_size=5,
+                           checkpointing=ea.Checkpointing(ck, **kw))
+    run_ck(every=5, keep=5)
+    record("resume with another `every` (10 instead of 5)", "API",
+           lambda: f"accepted; stop_reason={run_ck(every=10).stop_reason}")
+    record("resume with another problem", "API", lambda: ea.minimize(
+        load_tsplib("ulysses22"), g, seed=0, iterations=20,
+        checkpointing=ea.Checkpointing(ck, every=5)))
+
+    def flip() -> str:
+        shutil.rmtree(ck / "20")
+        # the step's merged array data (state/d/*; the per-process copies are not read)
+        arrays = sorted(p for p in (ck / "15" / "state" / "d").iterdir() if p.is_file())
+        data = bytearray(arrays[0].read_bytes())
+        data[len(data) // 2] ^= 1
+        arrays[0].write_bytes(bytes(data))
+        r = run_ck(every=5, keep=5)
+        moved = [p.name for p in (ck / "corrupt").iterdir()] if (ck / "corrupt").exists() else []
+        return f"iterations={r.iterations}; moved aside: {moved}"
+    record("one flipped byte in the newest checkpoint", "API", flip)
+
+    def locked() -> object:
+        from eaco_jax.driver.checkpoint import _Lock
+        lock = _Lock(ck)
+        lock.acquire()
+        try:
+            return run_ck(every=5)
+        finally:
+            lock.release()
+    record("a second run on the same checkpoint folder", "API", locked)
+    afile = TMP / "afile"
+    afile.write_text("x")
+    record("checkpoint folder that is a file", "API",
+           lambda: ea.minimize(burma, g, checkpointing=ea.Checkpointing(afile)))
+    ro = TMP / "ro"
+    ro.mkdir()
+    os.chmod(ro, 0o500)
+    note = "" if not os.access(ro, os.W_OK) else " (run as root: writable, not tested here)"
+    record(f"read-only checkpoint folder{note}", "API",
+           lambda: ea.minimize(burma, g, checkpointing=ea.Checkpointing(ro / "ck")).stop_reason)
+
+    lines = [
+        "# Bad inputs and faults, and what each gets now",
+        "",
+        "Generated by `python experiments/bad_inputs.py` (each row was run; the message is the",
+        "first thing the user sees: the one-line error, the warning, or the result fields).",
+        "Interrupts (Ctrl-C, SIGTERM) and two concurrent command-line runs are exercised in",
+        "`tests/test_interrupt.py`; their messages are listed at the end.",
+        "",
+        "| tried | via | what it gets now |",
+        "|---|---|---|",
+        *[f"| {w} | {h} | {t} |" for w, h, t in ROWS],
+        "| Ctrl-C during compilation (`eaco tsp ... --checkpoint-dir D`) | CLI | exit 130: "
+        "interrupted (SIGINT) after 0 of 3000 iterations; nothing to save yet (start the same "
+        "command again) |",
+        "| Ctrl-C / SIGTERM during a checkpointed run | CLI | exit 130: interrupted (SIGINT) "
+        "after 20 of 3000 iterations; checkpoint saved at step 20 in D; continue with: eaco "
+        "resume D |",
+        "| Ctrl-C without checkpointing | CLI | exit 130: interrupted (SIGINT) after N of M "
+        "iterations; best so far: L (no checkpoint: pass --checkpoint-dir to resume) |",
+        "| a second `eaco tsp --checkpoint-dir D` while the first runs | CLI | exit 2: error: "
+        "checkpoint folder D is in use by another run (pid P since T); wait for it to finish or "
+        "use another --checkpoint-dir |",
+        "",
+    ]
+    out = Path(__file__).resolve().parent.parent / "docs" / "bad_inputs.md"
+    out.write_text("\n".join(lines))
+    print(f"{len(ROWS) + 4} rows -> {out}")
+
+
+if __name__ == "__main__":
+    main()
+    os._exit(0)

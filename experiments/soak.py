@@ -1,0 +1,197 @@
+"""Soak test (not CI): a checkpointed run killed with SIGKILL again and again, then resumed.
+
+    python experiments/soak.py --minutes 60            # the one-hour soak
+    python experiments/soak.py --minutes 8 --iterations 20000   # a short one
+
+A child process runs ``minimize`` with checkpoints every ``--every`` iterations (a few seconds
+on a CPU) and ``keep`` = 3; the parent kills it with SIGKILL at random moments, samples its
+resident memory (``/proc/<pid>/status``) and the checkpoint folder's size, and starts it again
+(it resumes from the newest intact step) until the run finishes. The final result is compared
+with an unbroken run of the same settings. Prints one JSON record (and writes ``--out``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+def child(args: argparse.Namespace) -> None:
+    """Run (or resume) the soak run; write the final result as JSON."""
+    import jax
+    import numpy as np
+
+    import eaco_jax as ea
+    from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    jax.config.update("jax_compilation_cache_dir", args.cache)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    problem = ea.problems.load_tsplib(args.instance)
+    ck = None
+    if args.dir:
+        ck = ea.Checkpointing(args.dir, every=args.every, keep=args.keep)
+    res = ea.minimize(problem, GraphEACO(num_ants=args.ants, local_search="none"),
+                      seed=[0, 1], iterations=args.iterations, chunk_size=args.every,
+                      checkpointing=ck)
+    Path(args.result).write_text(json.dumps({
+        "best_cost": np.asarray(res.best_cost).tolist(),
+        "best_solution": np.asarray(res.best_solution).tolist(),
+        "history_best": np.asarray(res.history["best_cost"]).tolist(),
+        "evaluations": np.asarray(res.evaluations).tolist(),
+    }))
+
+
+def _rss_mb(pid: int) -> float | None:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        return None
+    return None
+
+
+def _disk_mb(folder: Path) -> float:
+    """Bytes under ``folder`` in MiB (orbax renames folders while it writes: retry)."""
+    for _ in range(5):
+        try:
+            total = 0
+            for root, _dirs, files in os.walk(folder):
+                for name in files:
+                    try:
+                        total += (Path(root) / name).stat().st_size
+                    except FileNotFoundError:
+                        continue
+            return total / 2**20
+        except FileNotFoundError:
+            time.sleep(0.05)
+    return float("nan")
+
+
+def _steady(samples: list[dict], cycles: list[dict]) -> list[float] | None:
+    """RSS of the last (longest-lived) process: [first, last, max] after its first quarter."""
+    if not cycles:
+        return None
+    span = cycles[-1]["alive_s"]
+    last = [x["rss_mb"] for x in samples if x["t"] >= samples[-1]["t"] - span + span / 4]
+    last = [v for v in last if v > 0]
+    return [last[0], last[-1], max(last)] if last else None
+
+
+def _spawn(args: argparse.Namespace, directory: str, result: Path) -> subprocess.Popen:
+    cmd = [sys.executable, __file__, "--child", "--dir", directory, "--result", str(result),
+           "--instance", args.instance, "--ants", str(args.ants), "--iterations",
+           str(args.iterations), "--every", str(args.every), "--keep", str(args.keep),
+           "--cache", args.cache]
+    log = open(Path(args.work) / "child.log", "a")  # noqa: SIM115 - a file, never a full pipe
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=log, text=True)
+
+
+def parent(args: argparse.Namespace) -> dict:
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    ck = work / "ck"
+    rng = random.Random(args.seed)
+    t_start = time.time()
+    # the unbroken reference (also warms the persistent compilation cache)
+    ref_file = work / "unbroken.json"
+    t0 = time.time()
+    ref = _spawn(args, "", ref_file)
+    ref.wait()
+    if ref.returncode != 0:
+        raise SystemExit(f"unbroken run failed: see {work / 'child.log'}")
+    unbroken_seconds = time.time() - t0
+    kills, samples, cycles = 0, [], []
+    result = work / "soak.json"
+    deadline = time.time() + 60 * args.minutes
+    while True:
+        proc = _spawn(args, str(ck), result)
+        wait = rng.uniform(args.min_kill, args.max_kill)
+        born = time.time()
+        if born + wait > deadline:
+            wait = float("inf")  # past the soak time: sample until the run finishes
+        peak = 0.0
+        while proc.poll() is None and time.time() - born < wait:
+            rss = _rss_mb(proc.pid)
+            if rss is not None:
+                peak = max(peak, rss)
+                samples.append({"t": round(time.time() - t_start, 1), "rss_mb": round(rss, 1),
+                                "disk_mb": round(_disk_mb(ck), 3) if ck.exists() else 0.0})
+            time.sleep(0.5)
+        finished = proc.poll() is not None
+        if not finished and time.time() < deadline:
+            proc.send_signal(signal.SIGKILL)
+            proc.wait()
+            kills += 1
+        elif not finished:
+            proc.wait()  # past the soak time: let it finish
+        if proc.returncode not in (0, -signal.SIGKILL):
+            raise SystemExit(f"child failed ({proc.returncode}): see {work / 'child.log'}")
+        steps = sorted(int(p.name) for p in ck.iterdir() if p.name.isdigit()) if ck.exists() \
+            else []
+        cycles.append({"alive_s": round(time.time() - born, 1), "peak_rss_mb": round(peak, 1),
+                       "disk_mb": round(_disk_mb(ck), 3) if ck.exists() else 0.0,
+                       "steps": steps, "killed": not finished})
+        if result.exists():
+            break
+    same = json.loads(result.read_text()) == json.loads(ref_file.read_text())
+    peaks = [c["peak_rss_mb"] for c in cycles if c["peak_rss_mb"]]
+    leftovers = [p.name for p in ck.iterdir() if "tmp" in p.name] if ck.exists() else []
+    return {
+        "instance": args.instance, "iterations": args.iterations, "every": args.every,
+        "keep": args.keep, "minutes": args.minutes, "kills": kills, "cycles": len(cycles),
+        "unbroken_seconds": round(unbroken_seconds, 1),
+        "soak_seconds": round(time.time() - t_start - unbroken_seconds, 1),
+        "identical_to_unbroken": same,
+        "peak_rss_mb_first_last_max": [peaks[0], peaks[-1], max(peaks)] if peaks else None,
+        "last_cycle_rss_mb_after_warmup": _steady(samples, cycles),
+        "max_steps_on_disk": max(len(c["steps"]) for c in cycles),
+        "max_disk_mb": max(c["disk_mb"] for c in cycles),
+        "tmp_leftovers_at_end": leftovers,
+        "corrupt_moved_aside": len(list((ck / "corrupt").iterdir()))
+        if (ck / "corrupt").exists() else 0,
+        "cycle_log": cycles, "samples": samples[:: max(1, len(samples) // 200)],
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=60.0, help="kill/resume phase length")
+    ap.add_argument("--instance", default="eil51")
+    ap.add_argument("--ants", type=int, default=40)
+    ap.add_argument("--iterations", type=int, default=200_000)
+    ap.add_argument("--every", type=int, default=500, help="iterations between checkpoints")
+    ap.add_argument("--keep", type=int, default=3)
+    ap.add_argument("--min-kill", type=float, default=20.0)
+    ap.add_argument("--max-kill", type=float, default=60.0)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--work", default="out/soak")
+    ap.add_argument("--out", default=None, help="write the JSON record here")
+    ap.add_argument("--cache", default=None, help="persistent compilation cache folder")
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--dir", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--result", default="", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    args.cache = args.cache or str(Path(args.work).absolute() / "jax-cache")
+    if args.child:
+        child(args)
+        return
+    record = parent(args)
+    text = json.dumps(record)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text + "\n")
+    summary = {k: v for k, v in record.items() if k not in ("cycle_log", "samples")}
+    print(json.dumps(summary))
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    main()
