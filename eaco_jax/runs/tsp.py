@@ -33,6 +33,9 @@ class TspSettings:
                              choices=("auto", "erx", "pmx", "none"))
     mutation: str = setting("auto", "tour mutation ('auto': inversion with local search)",
                             choices=("auto", "inversion", "swap", "none"))
+    preset: str = setting("default", "parameter set: default (evidence-based), mmas, paper "
+                          "(Table 4, every paper mechanism on)",
+                          choices=("default", "mmas", "paper"))
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
@@ -46,7 +49,7 @@ def build(s: TspSettings) -> Built:
 
     problem = load_tsplib(s.instance)
     strategy = GraphEACO(num_ants=int(s.ants), local_search=s.local_search,
-                         crossover=s.crossover, mutation=s.mutation)
+                         crossover=s.crossover, mutation=s.mutation, preset=s.preset)
     return Built(problem, strategy, strategy.default_params(problem),
                  {"iterations": int(s.iterations)})
 
