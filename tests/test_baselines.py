@@ -167,3 +167,33 @@ def test_ant_system_deposit_by_hand(burma):
     np.testing.assert_allclose(tau[3, 4], 0.5 * 0.01 + 1 / lengths[0] + 1 / lengths[1]
                                + 3.0 / lbs, rtol=1e-5)
     np.testing.assert_allclose(tau[0, 5], 0.5 * 0.01, rtol=1e-6)
+
+
+def test_registry_builds_every_name():
+    from eaco_jax import strategies
+
+    for name in strategies.names():
+        assert isinstance(strategies.get(name), ea.Strategy)
+    assert strategies.get("mmas").preset == "mmas"
+    assert strategies.get("acs", num_ants=7).num_ants == 7
+    with pytest.raises(ea.ConfigError, match="unknown strategy"):
+        strategies.get("nope")
+
+
+def test_baseline_checkpoint_resume_is_bit_identical(tmp_path):
+    """A baseline runs through minimize's checkpoints unchanged: resumed after a "crash" at
+    iteration 10 (later checkpoints deleted), the run ends bit-identical to an unbroken one."""
+    import shutil
+
+    problem, strategy = disc(), PSO(num_ants=8)
+    kw = dict(seed=[0, 1], iterations=20, chunk_size=5)
+    full = ea.minimize(problem, strategy, **kw)
+    ea.minimize(problem, strategy, **kw, checkpointing=ea.Checkpointing(tmp_path, every=5,
+                                                                          keep=10))
+    for later in ("15", "20"):
+        shutil.rmtree(tmp_path / later)
+    resumed = ea.minimize(problem, strategy, **kw, checkpointing=ea.Checkpointing(tmp_path,
+                                                                                    every=5))
+    assert (tmp_path / "20").exists() and resumed.iterations == 20
+    np.testing.assert_array_equal(np.asarray(resumed.f), np.asarray(full.f))
+    np.testing.assert_array_equal(resumed.best_solution, full.best_solution)
