@@ -188,3 +188,14 @@ def test_paper_preset_turns_every_mechanism_on(problem):
     assert paper_params().use_chaos
     mmas = GraphEACO(preset="mmas").default_params(problem)
     assert not bool(mmas.use_elitist) and bool(mmas.use_restart)
+
+
+def test_without_bounds_trails_start_and_restart_finite(problem):
+    """use_bounds=False must not start (or restart) the trails at tau_max = +inf."""
+    params = STRATEGY.default_params(problem).replace(use_bounds=jnp.bool_(False))
+    state = STRATEGY.init(jax.random.key(0), problem, params)
+    assert np.all(np.isfinite(np.asarray(state.tau)))
+    tau, _, new = tell(problem, use_global_update=True, use_restart=True, since=9,
+                       best=(TOURS[1], 5.0))
+    assert int(new.restarts) == 1 and np.all(np.isfinite(tau))
+    np.testing.assert_allclose(tau, np.full((N, N), 1 / 5.0), rtol=1e-6)

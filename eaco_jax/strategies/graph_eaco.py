@@ -228,7 +228,8 @@ class GraphEACO(Strategy):
         nn_weights = choice_weights(jnp.ones_like(dist), log_eta, _f(0.0), _f(1.0))
         nn_tour = construct_tours(k_chaos, nn_weights, jnp.zeros((1,), jnp.int32), q0=1.0)
         nn_length = tour_lengths(dist, nn_tour)[0]
-        tau_max, _ = self._bounds(params, nn_length, n)
+        # the MMAS tau_max even when the bounds are off (else the trails would start at +inf)
+        tau_max, _ = self._bounds(params.replace(use_bounds=jnp.bool_(True)), nn_length, n)
         tau0 = jnp.where(params.init_at_tau_max, tau_max, pheromone.initial_tau(n, nn_length))
         tau = jnp.full((n, n), tau0, jnp.float32)
         return GraphState(
@@ -407,7 +408,8 @@ class GraphEACO(Strategy):
         branching = pheromone.branching_factor(tau, problem.neighbors)
         converged = (p.restart_branching <= 0) | (branching < p.restart_branching)
         restart = p.use_restart & (since >= p.restart_after) & converged
-        tau = pheromone.reset(tau, tau_max, restart)
+        reset_to = self._bounds(p.replace(use_bounds=jnp.bool_(True)), state.best_cost, n)[0]
+        tau = pheromone.reset(tau, reset_to, restart)
         since = jnp.where(restart, 0, since)
 
         from eaco_jax.ops.diversity import edge_diversity
