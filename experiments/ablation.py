@@ -55,6 +55,60 @@ def f32(x: float) -> jax.Array:
     return jnp.float32(x)
 
 
+# --------------------------------------------------------------------------- runner
+_COMPILED: dict[Any, Any] = {}
+
+
+def run_cell(problem: Any, strategy: Any, params: Any, seeds: list[int], iterations: int,
+             chunk: int, stop: Any = None) -> dict[str, Any]:
+    """One cell: all seeds vmapped, the params *unbatched* (so a switched-off rule is skipped
+    by lax.cond, as in a single run, instead of both branches running under vmap as when
+    settings are vmapped), compiled once per strategy and shapes.
+
+    Returns the final state, the history (seeds, iterations), compute seconds per iteration
+    (compilation excluded) and the iterations run (``stop(state)`` ends it early)."""
+    from eaco_jax.driver.minimize import iteration_step
+
+    problem = strategy.prepare(problem)
+    keys = jnp.stack([jax.random.key(s) for s in seeds])
+    state = jax.vmap(lambda k: strategy.init(k, problem, params))(keys)
+    params = state.params  # as the strategy cast them; strip the batch axis
+    params = jax.tree.map(lambda x: x[0], params)
+    state = state.replace(params=None)
+
+    def one(prob, prm, s):
+        def body(c, _):
+            c, metrics = iteration_step(strategy, prob, c.replace(params=prm))
+            return c.replace(params=None), metrics
+
+        return jax.lax.scan(body, s, None, length=chunk)
+
+    key = (strategy, chunk, len(seeds))
+    if key not in _COMPILED:
+        fn = jax.jit(jax.vmap(one, in_axes=(None, None, 0)))
+        _COMPILED[key] = fn.lower(problem, params, state).compile()
+    fn = _COMPILED[key]
+    done, seconds, hist = 0, 0.0, []
+    while done < iterations:
+        t0 = time.perf_counter()
+        state, h = fn(problem, params, state)
+        jax.block_until_ready(state)
+        seconds += time.perf_counter() - t0
+        hist.append(np.asarray(h["best_cost"]))
+        done += chunk
+        if stop is not None and stop(state):
+            break
+    history = np.concatenate(hist, axis=1)[:, :iterations]
+    return dict(state=state.replace(params=params), history=history, iterations=done,
+                seconds_per_iteration=seconds / max(done, 1))
+
+
+def divisor_chunk(iterations: int, chunks: int) -> int:
+    """A chunk length that divides ``iterations``, about iterations / chunks."""
+    want = max(1, iterations // chunks)
+    return max(c for c in range(1, want + 1) if iterations % c == 0)
+
+
 # --------------------------------------------------------------------------- TSP cells
 def tsp_cells(problem: Any, local_search: str, ants: int) -> list[dict[str, Any]]:
     """Cells: name, reference cell, whether ERX/inversion are on, params."""
@@ -102,22 +156,6 @@ def first_hit(history: np.ndarray, target: float) -> np.ndarray:
     return np.where(hit.any(axis=1), hit.argmax(axis=1) + 1, -1)
 
 
-def seconds_per_iteration(problem: Any, strategy: Any, params: list[Any], iterations: int,
-                          rounds: int = 3) -> list[float]:
-    """Per cell: seconds per iteration with one seed, not vmapped (a switched-off rule is
-    skipped), the minimum over ``rounds`` interleaved rounds (the machine is shared)."""
-    def once(prm: Any) -> float:
-        return ea.minimize(problem, strategy, seed=0, params=prm, iterations=iterations,
-                           chunk_size=iterations).seconds_per_iteration
-
-    once(params[0])  # compiles once per strategy: params are traced
-    best = [np.inf] * len(params)
-    for _ in range(rounds):
-        for i, prm in enumerate(params):
-            best[i] = min(best[i], once(prm))
-    return [float(b) for b in best]
-
-
 def run_tsp(args: argparse.Namespace) -> list[dict[str, Any]]:
     seeds = list(range(args.seeds))
     rows: list[dict[str, Any]] = []
@@ -128,28 +166,19 @@ def run_tsp(args: argparse.Namespace) -> list[dict[str, Any]]:
             tours = args.tours_2opt if ls != "none" else args.tours_none
             iters = max(1, tours // args.ants)
             cells = tsp_cells(problem, ls, args.ants)
+            chunk = divisor_chunk(iters, args.chunks)
             results: dict[str, dict[str, Any]] = {}
-            for ops in (True, False):
-                group = [c for c in cells if c["ops"] == ops]
-                if not group:
-                    continue
-                ox = "erx" if ops else "none"
-                om = "inversion" if ops else "none"
+            for c in cells:
+                ox, om = ("erx", "inversion") if c["ops"] else ("none", "none")
                 strategy = GraphEACO(num_ants=args.ants, local_search=ls, crossover=ox,
                                      mutation=om)
                 t0 = time.perf_counter()
-                res = ea.minimize(problem, strategy, seed=seeds,
-                                  params=[c["params"] for c in group], iterations=iters,
-                                  chunk_size=max(1, iters // args.chunks))
-                wall = time.perf_counter() - t0
-                hist = np.asarray(res.history["best_cost"]).reshape(len(group), len(seeds), -1)
-                print(f"{name} ls={ls} ops={ops}: {len(group)} cells x {len(seeds)} seeds, "
-                      f"{iters} it, {wall:.0f} s (compile {res.compile_seconds:.0f} s)",
-                      flush=True)
-                spis = seconds_per_iteration(problem, strategy, [c["params"] for c in group],
-                                             args.timing_iterations)
-                for i, c in enumerate(group):
-                    results[c["name"]] = dict(cell=c, history=hist[i], spi=spis[i])
+                r = run_cell(problem, strategy, c["params"], seeds, iters, chunk)
+                results[c["name"]] = dict(cell=c, history=r["history"],
+                                          spi=r["seconds_per_iteration"])
+                print(f"{name} ls={ls} {c['name']}: {time.perf_counter() - t0:.0f} s, "
+                      f"{1e3 * r['seconds_per_iteration']:.1f} ms/it, mean gap "
+                      f"{100 * (r['history'][:, -1].mean() / opt - 1):.2f} %", flush=True)
             rows += tsp_rows(name, ls, opt, iters, args.ants, cells, results)
             write(args.out, "tsp", rows, args)  # partial results survive an interruption
     return rows
@@ -222,31 +251,27 @@ def run_constrained(args: argparse.Namespace) -> list[dict[str, Any]]:
         with ea.problems.float64():
             problem = ea.problems.cec2006(name)
             results = {}
-            for method in ("epsilon", "deb", "penalty"):
-                group = [c for c in cells if c["method"] == method]
+            for c in cells:
                 strategy = ContinuousEACO(refine_ants=0, repair_steps=0,
-                                          constraint_method=method)
+                                          constraint_method=c["method"])
                 iters = args.budget // strategy.num_ants
                 t0 = time.perf_counter()
-                res = ea.minimize(problem, strategy, seed=seeds,
-                                  params=[c["params"] for c in group], iterations=iters,
-                                  chunk_size=max(1, iters // args.chunks),
-                                  stop=_all_hit)
-                print(f"{name} {method}: {len(group)} cells x {len(seeds)} seeds, "
-                      f"{res.iterations} it, {time.perf_counter() - t0:.0f} s", flush=True)
-                k = len(seeds)
-                te = np.asarray(res.state.target_evaluations).reshape(len(group), k)
-                err = (np.asarray(res.state.best_f) - problem.f_star).reshape(len(group), k)
-                viol = np.asarray(res.state.best_violation).reshape(len(group), k)
-                for i, c in enumerate(group):
-                    e = np.where(viol[i] > 0, np.inf, np.maximum(err[i], 0.0))
-                    results[c["name"]] = dict(te=te[i], err=e)
+                r = run_cell(problem, strategy, c["params"], seeds, iters,
+                             divisor_chunk(iters, args.chunks), stop=_all_hit)
+                s = r["state"]
+                te = np.asarray(s.target_evaluations)
+                err = np.asarray(s.best_f) - problem.f_star
+                err = np.where(np.asarray(s.best_violation) > 0, np.inf, np.maximum(err, 0.0))
+                results[c["name"]] = dict(te=te, err=err)
+                print(f"{name} {c['name']}: {r['iterations']} it, "
+                      f"{time.perf_counter() - t0:.0f} s, success {np.mean(te >= 0):.2f}",
+                      flush=True)
         rows += constrained_rows(name, problem.f_star, args.budget, cells, results)
         write(args.out, "constrained", rows, args)
     return rows
 
 
-def _all_hit(state: Any, progress: Any) -> bool:
+def _all_hit(state: Any) -> bool:
     return bool(np.all(np.asarray(state.target_evaluations) >= 0))
 
 
