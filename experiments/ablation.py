@@ -8,14 +8,15 @@
 every paper mechanism switched on alone against the default ("+X"), the default-on MMAS
 mechanisms switched off ("-X"), the paper's configuration (preset "paper": Table 4 values,
 every mechanism on) against the default, and the paper configuration with one mechanism off
-at a time ("paper -X"). All cells of one static configuration and all seeds run as ONE vmapped
-call (cells x seeds rows), at a fixed number of tours built (ants x iterations). Paired by
-seed: cell vs its reference (default, or paper for "paper -X"), Wilcoxon signed-rank on the
-final tour lengths, Holm-adjusted within each instance x mode. Fixed wall time: each cell's
-seconds per iteration is measured alone (one seed, not vmapped: a switched-off rule is
-skipped by lax.cond there, while under vmap both branches run) and the cell's best at the
-iteration it would reach in the default cell's wall time is read from its history (capped at
-the tour budget, which a faster cell would exceed).
+at a time ("paper -X"), at a fixed number of tours built (ants x iterations). Each cell is one
+compiled call with the seeds vmapped and its parameters unbatched, so a switched-off rule is
+skipped by lax.cond as in a single run (vmapping the settings too would run both branches of
+every switch).
+Paired by seed: cell vs its reference (default, or paper for "paper -X"), Wilcoxon
+signed-rank on the final tour lengths, Holm-adjusted within each instance x mode. Fixed wall
+time: a cell's best at the iteration it reaches in the default cell's compute time (from its
+measured seconds per iteration, 25 seeds vmapped, on a shared 2-core machine: indicative),
+capped at the tour budget (which a faster cell would exceed).
 
 **Constrained.** ContinuousEACO derivative-free (``repair_steps=0, refine_ants=0``), float64,
 each operator off in turn, q0 = 0, Table 3's best setting (q0 = 0.8, rho = 0.3, p_c = 0.6,
@@ -42,6 +43,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import evidence_stats as st  # noqa: E402
+from evidence_runner import divisor_chunk, run_cell  # noqa: E402
 
 import eaco_jax as ea  # noqa: E402
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO  # noqa: E402
@@ -53,60 +55,6 @@ T, F = jnp.bool_(True), jnp.bool_(False)
 
 def f32(x: float) -> jax.Array:
     return jnp.float32(x)
-
-
-# --------------------------------------------------------------------------- runner
-_COMPILED: dict[Any, Any] = {}
-
-
-def run_cell(problem: Any, strategy: Any, params: Any, seeds: list[int], iterations: int,
-             chunk: int, stop: Any = None) -> dict[str, Any]:
-    """One cell: all seeds vmapped, the params *unbatched* (so a switched-off rule is skipped
-    by lax.cond, as in a single run, instead of both branches running under vmap as when
-    settings are vmapped), compiled once per strategy and shapes.
-
-    Returns the final state, the history (seeds, iterations), compute seconds per iteration
-    (compilation excluded) and the iterations run (``stop(state)`` ends it early)."""
-    from eaco_jax.driver.minimize import iteration_step
-
-    problem = strategy.prepare(problem)
-    keys = jnp.stack([jax.random.key(s) for s in seeds])
-    state = jax.vmap(lambda k: strategy.init(k, problem, params))(keys)
-    params = state.params  # as the strategy cast them; strip the batch axis
-    params = jax.tree.map(lambda x: x[0], params)
-    state = state.replace(params=None)
-
-    def one(prob, prm, s):
-        def body(c, _):
-            c, metrics = iteration_step(strategy, prob, c.replace(params=prm))
-            return c.replace(params=None), metrics
-
-        return jax.lax.scan(body, s, None, length=chunk)
-
-    key = (strategy, chunk, len(seeds))
-    if key not in _COMPILED:
-        fn = jax.jit(jax.vmap(one, in_axes=(None, None, 0)))
-        _COMPILED[key] = fn.lower(problem, params, state).compile()
-    fn = _COMPILED[key]
-    done, seconds, hist = 0, 0.0, []
-    while done < iterations:
-        t0 = time.perf_counter()
-        state, h = fn(problem, params, state)
-        jax.block_until_ready(state)
-        seconds += time.perf_counter() - t0
-        hist.append(np.asarray(h["best_cost"]))
-        done += chunk
-        if stop is not None and stop(state):
-            break
-    history = np.concatenate(hist, axis=1)[:, :iterations]
-    return dict(state=state.replace(params=params), history=history, iterations=done,
-                seconds_per_iteration=seconds / max(done, 1))
-
-
-def divisor_chunk(iterations: int, chunks: int) -> int:
-    """A chunk length that divides ``iterations``, about iterations / chunks."""
-    want = max(1, iterations // chunks)
-    return max(c for c in range(1, want + 1) if iterations % c == 0)
 
 
 # --------------------------------------------------------------------------- TSP cells
@@ -382,7 +330,21 @@ def main() -> None:
         p.add_argument("--chunks", type=int, default=10, help="compiled chunks per run")
         p.add_argument("--quick", action="store_true", help="smoke run: 4 seeds, tiny budgets")
         p.add_argument("--out", default=str(RESULTS))
+    m = sub.add_parser("merge", help="merge result JSONs of one family into one table")
+    m.add_argument("merge_family", choices=("tsp", "constrained"))
+    m.add_argument("files", nargs="+")
+    m.add_argument("--out", default=str(RESULTS))
     args = ap.parse_args()
+    if args.family == "merge":
+        rows, metas = [], []
+        for f in args.files:
+            d = json.loads(Path(f).read_text())
+            rows += d["rows"]
+            metas.append(d["meta"])
+        args.quick, args.parts = False, metas
+        write(args.out, args.merge_family, rows, args)
+        print(f"{len(rows)} rows merged under {args.out}")
+        return
     if args.quick:
         args.seeds = 4
         if args.family == "tsp":
