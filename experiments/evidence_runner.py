@@ -39,7 +39,7 @@ def run_cell(problem: Any, strategy: Any, params: Any, seeds: list[int], iterati
 
         return jax.lax.scan(body, s, None, length=chunk)
 
-    key = (strategy, chunk, len(seeds))
+    key = (strategy, chunk, _signature(problem), _signature(state), _signature(params))
     if key not in _COMPILED:
         fn = jax.jit(jax.vmap(one, in_axes=(None, None, 0)))
         _COMPILED[key] = fn.lower(problem, params, state).compile()
@@ -59,6 +59,12 @@ def run_cell(problem: Any, strategy: Any, params: Any, seeds: list[int], iterati
     return dict(state=state.replace(params=params), history=metrics["best_cost"],
                 metrics=metrics, iterations=min(done, iterations),
                 seconds_per_iteration=seconds / max(done, 1))
+
+
+def _signature(tree: Any) -> tuple:
+    """Tree structure (static metadata included) and leaf shapes / dtypes."""
+    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    return treedef, tuple((np.shape(x), str(getattr(x, "dtype", type(x)))) for x in leaves)
 
 
 def divisor_chunk(iterations: int, chunks: int) -> int:
