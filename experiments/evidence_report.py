@@ -24,6 +24,20 @@ def p_fmt(v) -> str:
     return "-" if v is None else (f"{v:.1e}" if v < 1e-3 else f"{v:.3f}")
 
 
+def wins(rows: list[dict], r: dict, key: str, match: tuple[str, ...]) -> str:
+    """'w/l': seeds where the cell is better / worse than its reference (None = worst)."""
+    if r.get("reference") is None:
+        return "-"
+    ref = next(x for x in rows if x["cell"] == r["reference"]
+               and all(x[k] == r[k] for k in match))
+    inf = float("inf")
+    a = [inf if v is None else v for v in r[key]]
+    b = [inf if v is None else v for v in ref[key]]
+    w = sum(x < y for x, y in zip(a, b, strict=True))
+    worse = sum(x > y for x, y in zip(a, b, strict=True))
+    return f"{w}/{worse}"
+
+
 def tsp() -> None:
     rows = load("ablation_tsp.json")
     if not rows:
@@ -38,12 +52,14 @@ def tsp() -> None:
                   f"{r0['tours']:,} tours ({r0['ants']} ants x {r0['iterations']}), "
                   f"{r0['seeds']} seeds\n")
             print("| cell | gap % mean [95% CI] | gap % at 25% budget | opt hit | "
-                  "Δ vs ref | p (Wilcoxon) | p Holm | gap % at equal time |")
-            print("|---|---|---|---|---|---|---|---|")
+                  "Δ vs ref | better/worse seeds | p (Wilcoxon) | p Holm | "
+                  "gap % at equal time |")
+            print("|---|---|---|---|---|---|---|---|---|")
             for r in sel:
                 print(f"| {r['cell']} | {r['gap_mean']:.2f} [{r['gap_ci_low']:.2f}, "
                       f"{r['gap_ci_high']:.2f}] | {r['gap_mean_at_25pct']:.2f} | "
                       f"{r['success_rate']:.2f} | {num(r.get('delta_gap_mean'), '+.2f')} | "
+                      f"{wins(rows, r, 'final_lengths', ('instance', 'local_search'))} | "
                       f"{p_fmt(r.get('p_value'))} | {p_fmt(r.get('p_holm'))} | "
                       f"{r['wall_gap_mean']:.2f} |")
 
@@ -57,13 +73,15 @@ def constrained() -> None:
         print(f"\n### {prob} derivative-free, {sel[0]['budget']:,} evaluations, "
               f"{sel[0]['seeds']} seeds\n")
         print("| cell | success | SP | error mean [95% CI] (feasible runs) | feasible | "
-              "p error (Holm) | p evals (Holm) |")
-        print("|---|---|---|---|---|---|---|")
+              "better/worse seeds | p error (Holm) | p evals (Holm) |")
+        print("|---|---|---|---|---|---|---|---|")
         for r in sel:
             print(f"| {r['cell']} | {r['success_rate']:.2f} | "
                   f"{num(r['success_performance'], ',.0f')} | {r['error_mean']:.3g} "
                   f"[{r['error_ci_low']:.3g}, {r['error_ci_high']:.3g}] | "
-                  f"{r['feasible_rate']:.2f} | {p_fmt(r.get('p_error_holm'))} | "
+                  f"{r['feasible_rate']:.2f} | "
+                  f"{r.get('better_seeds', '-')}/{r.get('worse_seeds', '-')} | "
+                  f"{p_fmt(r.get('p_error_holm'))} | "
                   f"{p_fmt(r.get('p_evaluations_holm'))} |")
 
 
