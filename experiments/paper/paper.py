@@ -9,10 +9,12 @@ JSON + CSV + PNG under ``experiments/results/paper/``. Our reading of each item:
 * **Table 1** (computing efficiency: CPU time per iteration, iterations to convergence, time to
   the optimum). The paper does not say on which problem; we run it twice. TSP eil51 without
   local search at 15,000 tours (25 ants x 600 iterations): EACO (preset "paper" and the
-  default, which without 2-opt *is* MMAS), AS, EAS, ACS, annealing and tabu on tours, random
-  tours; target = within 2 % of the optimum. G1 (= g01) derivative-free at 100,000
-  evaluations: EACO, ACO_R (EACO without crossover, mutation, chaos and restarts, q0 = 0),
-  PSO, the LX-PM GA, SA, tabu, random search; target f* + 1e-4 (the Table 2 runs).
+  default, which without 2-opt *is* MMAS), AS, EAS, ACS, annealing (one chain cooled over all
+  15,000 proposals) and tabu on tours, random tours; target = within 2 % of the optimum.
+  G1 (= g01) derivative-free at 100,000 evaluations: EACO, ACO_R (EACO without crossover,
+  mutation, chaos and restarts, q0 = 0), PSO, the LX-PM GA, SA (one chain), tabu, random
+  search; target f* + 1e-4 (the Table 2 runs). Compare algorithms by evaluations / tours,
+  not iterations (populations differ).
 * **Table 2** (G1-G4 = g01, g10, g09, g13): iterations and time to the target, mean best
   value (feasible runs), for GA, SA, EACO (+ PSO, tabu, and EACO with gradients).
 * **Table 3**: the paper's (q0, rho, p_c, p_m) grid on G1, mean iterations to the target and
@@ -117,14 +119,17 @@ def save(name: str, rows: list[dict[str, Any]], meta: dict[str, Any], out: Path)
 
 # --------------------------------------------------------------------------- Table 1, TSP
 def tsp_algorithms(problem: Any, ants: int, iters: int) -> list[tuple[str, Any, Any]]:
-    sa = TourAnnealing(num_ants=ants)
+    """(name, strategy, params). Annealing runs ONE chain for ants x iters proposals (the
+    same tours), cooling over all of them: its best use of the budget."""
+    sa = TourAnnealing(num_ants=1)
     return [
         ("EACO (paper preset)", GraphEACO(ants, local_search="none", preset="paper"), None),
         ("EACO default = MMAS", GraphEACO(ants, local_search="none"), None),
         ("ACO: ant system", AntSystem(ants), None),
         ("ACO: elitist AS", AntSystem(ants, elitist=True), None),
         ("ACO: ACS", AntColonySystem(ants), None),
-        ("SA (2-opt moves)", sa, sa.default_params().replace(anneal_iterations=f32(iters))),
+        ("SA (2-opt moves, 1 chain)", sa,
+         sa.default_params().replace(anneal_iterations=f32(iters * ants))),
         ("tabu (2-opt moves)", TourTabu(num_ants=ants), None),
         ("random tours", RandomTours(ants), None),
     ]
@@ -139,14 +144,15 @@ def table1_tsp(args: argparse.Namespace) -> list[dict[str, Any]]:
     rows, curves = [], {}
     for name, strategy, params in tsp_algorithms(problem, args.ants, iters):
         params = strategy.default_params(problem) if params is None else params
-        r = run_cell(problem, strategy, params, seeds, iters, divisor_chunk(iters, 10))
+        its = iters * args.ants // strategy.num_ants  # equal tours
+        r = run_cell(problem, strategy, params, seeds, its, divisor_chunk(its, 10))
         h = r["history"]
         hit = first_hit(h, target)
         spi = r["seconds_per_iteration"] / len(seeds)  # per run (seeds share the call)
         conv = last_improvement(h)
         final = 100 * (h[:, -1] / opt - 1)
         rows.append(dict(
-            algorithm=name, instance=args.instance, ants=args.ants, iterations=iters,
+            algorithm=name, instance=args.instance, ants=strategy.num_ants, iterations=its,
             seeds=len(seeds), seconds_per_iteration_per_run=spi,
             seconds_per_iteration_25_vmapped=r["seconds_per_iteration"],
             iterations_to_convergence_mean=float(conv.mean()),
@@ -155,11 +161,13 @@ def table1_tsp(args: argparse.Namespace) -> list[dict[str, Any]]:
             expected_iterations_to_target=expected_iterations(hit),
             seconds_to_target_mean=(float(hit[hit > 0].mean() * spi) if (hit > 0).any()
                                     else None),
+            tours_to_target_mean=(float(hit[hit > 0].mean() * strategy.num_ants)
+                                  if (hit > 0).any() else None),
             stuck_fraction=st.stuck_fraction(h[:, -1], target),
             **{f"final_gap_{k}": v for k, v in st.summary(final).items()
                if k in ("mean", "ci_low", "ci_high", "median", "min")},
             final_lengths=h[:, -1].tolist()))
-        curves[name] = 100 * (h / opt - 1)
+        curves[name] = (strategy.num_ants, 100 * (h / opt - 1))
         print(f"table1 {name}: gap {final.mean():.2f} %, success {np.mean(hit > 0):.2f}",
               flush=True)
     ref = rows[0]["final_lengths"]
@@ -167,8 +175,8 @@ def table1_tsp(args: argparse.Namespace) -> list[dict[str, Any]]:
         r["p_vs_eaco_paper"] = st.paired_test(r["final_lengths"], ref)
     stem = save("table1_tsp", rows, vars_meta(args), args.out)
     fig, ax = plots.subplots(figsize=(7, 4.5))
-    for name, c in curves.items():
-        x = np.arange(1, c.shape[1] + 1) * args.ants
+    for name, (ants, c) in curves.items():
+        x = np.arange(1, c.shape[1] + 1) * ants
         ax.plot(x, c.mean(axis=0), label=name)
     ax.set_yscale("log")
     ax.set_xlabel("tours built")
@@ -183,14 +191,14 @@ def continuous_algorithms(iters: int) -> list[tuple[str, Any, Any]]:
     df = ContinuousEACO(refine_ants=0, repair_steps=0)
     aco_r = df.default_params().replace(p_crossover=0.0, p_mutation=0.0, chaos_rate=0.0,
                                         restart_patience=1e9, q0=0.0)
-    sa = SimulatedAnnealing(num_ants=20)
+    sa = SimulatedAnnealing(num_ants=1)  # one chain, cooled over the whole budget
     return [
         ("EACO (derivative-free)", df, None),
         ("EACO (gradients, autodiff)", ContinuousEACO(), None),
         ("ACO_R (no GA ops, chaos, restarts)", df, aco_r),
         ("PSO", PSO(num_ants=20), None),
         ("GA (LX-PM)", RealGA(num_ants=20), None),
-        ("SA", sa, sa.default_params().replace(anneal_iterations=float(iters))),
+        ("SA", sa, sa.default_params().replace(anneal_iterations=float(iters * 20))),
         ("tabu", TabuSearch(num_ants=20), None),
         ("random search", RandomSearch(num_ants=20), None),
     ]
@@ -202,9 +210,9 @@ def table2(args: argparse.Namespace) -> list[dict[str, Any]]:
     for g in args.problems.split(","):
         with ea.problems.float64():
             problem = ea.problems.cec2006(G_NAMES[g])
-            iters = args.budget // 20
-            for name, strategy, params in continuous_algorithms(iters):
+            for name, strategy, params in continuous_algorithms(args.budget // 20):
                 params = strategy.default_params(problem) if params is None else params
+                iters = args.budget // strategy.num_ants
                 r = run_cell(problem, strategy, params, seeds, iters,
                              divisor_chunk(iters, 10))
                 s = r["state"]
@@ -216,6 +224,7 @@ def table2(args: argparse.Namespace) -> list[dict[str, Any]]:
                 ok = te >= 0
                 rows.append(dict(
                     problem=g, cec=G_NAMES[g], f_star=problem.f_star, algorithm=name,
+                    population=strategy.num_ants,
                     budget=args.budget, seeds=len(seeds), success_rate=float(ok.mean()),
                     iterations_to_target_mean=float(ti[ok].mean()) if ok.any() else None,
                     evaluations_to_target_mean=float(te[ok].mean()) if ok.any() else None,
@@ -225,7 +234,7 @@ def table2(args: argparse.Namespace) -> list[dict[str, Any]]:
                     **{f"best_{k}": v for k, v in st.summary(best).items()
                        if k in ("mean", "ci_low", "ci_high", "median", "min", "max")},
                     best_values=[None if np.isnan(b) else float(b) for b in best]))
-                curves[(g, name)] = r["history"]
+                curves[(g, name)] = (strategy.num_ants, r["history"])
                 print(f"table2 {g} {name}: success {ok.mean():.2f}, mean best "
                       f"{np.nanmean(best) if feas.any() else float('nan'):.6g}", flush=True)
     for g in args.problems.split(","):
@@ -244,11 +253,11 @@ def table2(args: argparse.Namespace) -> list[dict[str, Any]]:
     fig, axes = plots.subplots(1, len(panels), figsize=(4.6 * len(panels), 4), squeeze=False)
     for ax, g in zip(axes[0], panels, strict=True):
         f_star = next(r["f_star"] for r in rows if r["problem"] == g)
-        for (gg, name), h in curves.items():
+        for (gg, name), (ants, h) in curves.items():
             if gg != g:
                 continue
             err = np.where(np.isfinite(h), np.maximum(h - f_star, 1e-10), np.nan)
-            x = np.arange(1, h.shape[1] + 1) * 20
+            x = np.arange(1, h.shape[1] + 1) * ants
             ax.plot(x, np.nanmedian(err, axis=0), label=name)
         ax.set_yscale("log")
         ax.set_title(f"{g} ({G_NAMES[g]})")
