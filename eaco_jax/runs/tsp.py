@@ -40,6 +40,9 @@ class TspSettings:
                              choices=("auto", "erx", "pmx", "none"))
     mutation: str = setting("auto", "tour mutation ('auto': inversion with local search)",
                             choices=("auto", "inversion", "swap", "none"))
+    preset: str = setting("default", "parameter set: default (evidence-based), mmas, paper "
+                          "(Table 4, every paper mechanism on)",
+                          choices=("default", "mmas", "paper"))
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
     max_seconds: float | None = setting(None, "stop after this many compute seconds")
@@ -56,7 +59,7 @@ def build(s: TspSettings) -> Built:
 
     problem = load_tsplib(s.instance)
     strategy = GraphEACO(num_ants=int(s.ants), local_search=s.local_search,
-                         crossover=s.crossover, mutation=s.mutation)
+                         crossover=s.crossover, mutation=s.mutation, preset=s.preset)
     overrides = parse_overrides(s.params)
     params = params_with(strategy.default_params(problem), overrides, "--params: ")
     strategy.check_params(params, "--params: ")

@@ -33,6 +33,16 @@ count: the driver starts an iteration only if its worst case (:meth:`ContinuousE
 fits in what is left. ``state.evaluations`` has the charged count and
 ``state.target_evaluations`` the count at which f - f* <= 1e-4 was first met.
 
+Finite-difference accounting (what the gradient modes would cost without autodiff), kept
+beside it: ``fd_evaluations`` charges one evaluation per point at which the objective and all
+constraints are computed (the CEC2006 unit): a repair step n + 1 (its point and a forward-
+difference Jacobian), a refinement (n + 1)(n + 2) / 2 (a forward-difference Hessian, whose
+points also give the gradients); ``fd_function_evaluations`` charges every function apart:
+n + 1 per gradient per function (the objective and each of the p + q constraints) and
+(n + 1)(n + 2) / 2 per Hessian per function. Both add the colony's ants; ``target_fd_*`` are
+their counts when the target was first met. Derivative-free (``repair_steps = refine_ants =
+0``) all three counts are equal.
+
 Precision: the colony works in the problem's dtype (float64 when the problem was built inside
 :func:`eaco_jax.problems.float64`); ``best_cost`` (float32, the driver's field) is the best
 feasible objective, +inf until a feasible point is found; ``best_f`` keeps full precision.
@@ -119,6 +129,10 @@ class ContinuousState(State):
     best_violation: Array
     target_evaluations: Array
     target_iteration: Array
+    fd_evaluations: Array  # finite-difference accounting, point unit (module docstring)
+    fd_function_evaluations: Array  # ... every function charged apart
+    target_fd_evaluations: Array
+    target_fd_function_evaluations: Array
 
 
 @dataclasses.dataclass(frozen=True)
@@ -229,6 +243,10 @@ class ContinuousEACO(Strategy):
             best_violation=jnp.asarray(jnp.inf, dtype),
             target_evaluations=jnp.asarray(-1, jnp.int32),
             target_iteration=jnp.asarray(-1, jnp.int32),
+            fd_evaluations=jnp.zeros((), jnp.int32),
+            fd_function_evaluations=jnp.zeros((), jnp.int32),
+            target_fd_evaluations=jnp.asarray(-1, jnp.int32),
+            target_fd_function_evaluations=jnp.asarray(-1, jnp.int32),
         )
 
     # ----------------------------------------------------------------- ask
@@ -283,6 +301,9 @@ class ContinuousEACO(Strategy):
         x = jnp.where(do_chaos, chaotic, x)
 
         extra = jnp.zeros((), jnp.int32)
+        functions = 1 + _num_constraints(problem)
+        hessian = (n + 1) * (n + 2) // 2
+        fd = fdf = jnp.zeros((), jnp.int32)  # finite-difference costs (module docstring)
         # local refinement: SQP-style steps from the archive's best as the last ants
         if self.refine_ants > 0:
             d = sqp_direction(problem, arch[0], p.refine_active, p.repair_margin)
@@ -290,6 +311,7 @@ class ContinuousEACO(Strategy):
             cand = jnp.clip(arch[0][None, :] + alpha[:, None] * d[None, :], lo, hi)
             x = x.at[m - self.refine_ants:].set(cand)
             extra = extra + n + 1
+            fd, fdf = fd + hessian, fdf + functions * hessian
 
         # gradient repair of infeasible ants
         margin = p.repair_margin * jnp.mean(hi - lo)
@@ -297,8 +319,12 @@ class ContinuousEACO(Strategy):
         if self.repair_steps > 0 and _num_constraints(problem) > 0:
             x, steps = jax.vmap(lambda a, e: ch.gradient_repair(
                 problem, a, self.repair_steps, margin, e))(x, enabled)
-            extra = extra + jnp.sum(steps).astype(jnp.int32)
-        return x, state.replace(chaos=z, evaluations=state.evaluations + extra)
+            taken = jnp.sum(steps).astype(jnp.int32)
+            extra = extra + taken
+            fd, fdf = fd + taken * (n + 1), fdf + taken * (functions - 1) * (n + 1)
+        return x, state.replace(chaos=z, evaluations=state.evaluations + extra,
+                                fd_evaluations=state.fd_evaluations + fd,
+                                fd_function_evaluations=state.fd_function_evaluations + fdf)
 
     def _chaotic_restart(self, state: ContinuousState, problem: Any) -> ContinuousState:
         """After ``restart_patience`` iterations without progress, re-seed the whole archive.
@@ -354,10 +380,15 @@ class ContinuousEACO(Strategy):
         best_v = jnp.where(improved, v[i], state.best_violation)
         evaluations = state.evaluations + solutions.shape[0]
         target_evals, target_iter = state.target_evaluations, state.target_iteration
+        target_fd, target_fdf = state.target_fd_evaluations, state.target_fd_function_evaluations
         f_star = getattr(problem, "f_star", None)
         if f_star is not None:
             hit = (best_v <= 0) & (best_f - f_star <= TARGET_TOLERANCE) & (target_evals < 0)
             target_evals = jnp.where(hit, evaluations, target_evals)
+            target_fd = jnp.where(hit, state.fd_evaluations + solutions.shape[0],
+                                  state.target_fd_evaluations)
+            target_fdf = jnp.where(hit, state.fd_function_evaluations + solutions.shape[0],
+                                   state.target_fd_function_evaluations)
             target_iter = jnp.where(hit, state.iteration + 1, target_iter)
         lo, hi = problem.lower, problem.upper
         ax = all_x[keep]
@@ -374,6 +405,10 @@ class ContinuousEACO(Strategy):
             stagnation=jnp.where(progress, 0, state.stagnation + 1),
             target_evaluations=target_evals,
             target_iteration=target_iter,
+            target_fd_evaluations=target_fd,
+            target_fd_function_evaluations=target_fdf,
+            fd_evaluations=state.fd_evaluations + solutions.shape[0],
+            fd_function_evaluations=state.fd_function_evaluations + solutions.shape[0],
         )
         metrics = {
             "diversity": diversity.astype(jnp.float32),

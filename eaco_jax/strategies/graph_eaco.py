@@ -82,6 +82,8 @@ from eaco_jax.strategies.base import (
 Array = jax.Array
 
 LOCAL_SEARCHES = ("2opt", "2opt-dlb", "2opt+oropt", "none")
+#: named parameter sets of GraphEACO.default_params
+PRESETS = ("default", "mmas", "paper")
 CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
 
@@ -153,6 +155,26 @@ class GraphState(State):
     restarts: Array
 
 
+def paper_params() -> GraphParams:
+    """The paper's EACO: Table 4's values and every mechanism of the paper on.
+
+    alpha = 1, beta = 5, rho = 0.2, Q = 100, tau0 = 1/(n L_nn) (no start at tau_max),
+    p_c = 0.6, p_m = 0.5 (Table 4); q0 = 0.8 (Table 3's best); local update (Eq. 68-70),
+    global update on the global-best tour every iteration (Eq. 71, alpha_g = rho: the paper
+    gives no separate value), elitist ants (Eq. 73-74, sigma = 6: not given in the paper),
+    elitist-only deposit (Eq. 3-4), adaptive weight (Eq. 5-6), MAX-MIN bounds (Eq. 7), chaos
+    and the dynamic evaporation; no MMAS restarts (the paper has none).
+    """
+    on = True
+    return GraphParams(
+        alpha=1.0, beta=5.0, rho=0.2, q0=0.8, alpha_g=0.2, sigma=6.0, q=100.0,
+        p_crossover=0.6, p_mutation=0.5, gb_every=1.0,
+        use_local_update=on, use_global_update=on, use_elitist=on, use_deposit_condition=on,
+        use_adaptive_weight=on, use_bounds=on, use_chaos=on, use_evaporation_schedule=on,
+        use_restart=False, use_restart_best=False, use_adaptive_rates=on,
+        init_at_tau_max=False)
+
+
 def _f(x: float) -> Array:
     return jnp.asarray(x, jnp.float32)
 
@@ -176,10 +198,15 @@ class GraphEACO(Strategy):
     #: how construction's whole-row fallback runs ("auto", "lazy", "dense", "backup"; see
     #: construction.construct_tours): a cost choice only, every plan builds the same tours
     construction_fallback: str = "auto"
+    #: named parameter set of :meth:`default_params` (:data:`PRESETS`); "paper" also turns
+    #: ERX crossover and inversion mutation on without local search ("auto")
+    preset: str = "default"
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
-        with_ls = self.local_search != "none"
+        if self.preset not in PRESETS:
+            raise ConfigError(f"preset={self.preset!r} is not one of {PRESETS}")
+        with_ls = self.local_search != "none" or self.preset == "paper"
         for name, on in (("crossover", "erx"), ("mutation", "inversion")):
             if getattr(self, name) == "auto":
                 object.__setattr__(self, name, on if with_ls else "none")
@@ -196,8 +223,19 @@ class GraphEACO(Strategy):
                 raise ConfigError(f"{name}={value!r} is not one of {allowed}")
 
     # ------------------------------------------------------------------ params
-    def default_params(self, problem: Any = None) -> GraphParams:
-        """The defaults; without local search, MMAS as ACOTSP runs it (module docstring)."""
+    def default_params(self, problem: Any = None, preset: str | None = None) -> GraphParams:
+        """The parameters of ``preset`` (default: the strategy's ``preset`` field).
+
+        "mmas": MAX-MIN ant system as ACOTSP runs it (the module docstring's defaults; without
+        local search the ACOTSP no-LS settings). "paper": Table 4 and every mechanism of the
+        paper on (:func:`paper_params`). "default": the evidence-based default
+        (``experiments/ablation.py``), today the same as "mmas".
+        """
+        preset = self.preset if preset is None else preset
+        if preset not in PRESETS:
+            raise ConfigError(f"preset={preset!r} is not one of {PRESETS}")
+        if preset == "paper":
+            return as_params(paper_params())
         params = GraphParams()
         if self.local_search == "none":
             k = getattr(problem, "neighbors", None)
@@ -253,7 +291,8 @@ class GraphEACO(Strategy):
         nn_weights = choice_weights(jnp.ones_like(dist), log_eta, _f(0.0), _f(1.0))
         nn_tour = construct_tours(k_chaos, nn_weights, jnp.zeros((1,), jnp.int32), q0=1.0)
         nn_length = tour_lengths(dist, nn_tour)[0]
-        tau_max, _ = self._bounds(params, nn_length, n)
+        # the MMAS tau_max even when the bounds are off (else the trails would start at +inf)
+        tau_max, _ = self._bounds(params.replace(use_bounds=jnp.bool_(True)), nn_length, n)
         tau0 = jnp.where(params.init_at_tau_max, tau_max, pheromone.initial_tau(n, nn_length))
         tau = jnp.full((n, n), tau0, jnp.float32)
         return GraphState(
@@ -450,7 +489,8 @@ class GraphEACO(Strategy):
         branching = pheromone.branching_factor(tau, problem.neighbors)
         converged = (p.restart_branching <= 0) | (branching < p.restart_branching)
         restart = p.use_restart & (since >= p.restart_after) & converged
-        tau = pheromone.reset(tau, tau_max, restart)
+        reset_to = self._bounds(p.replace(use_bounds=jnp.bool_(True)), state.best_cost, n)[0]
+        tau = pheromone.reset(tau, reset_to, restart)
         since = jnp.where(restart, 0, since)
 
         from eaco_jax.ops.diversity import edge_diversity

@@ -1,0 +1,169 @@
+"""Markdown tables of the evidence results (ablation, CEC2006, paper tables) from their JSON.
+
+    python experiments/evidence_report.py > experiments/results/EVIDENCE_TABLES.md
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def load(name: str) -> list[dict] | None:
+    p = RESULTS / name
+    return json.loads(p.read_text())["rows"] if p.exists() else None
+
+
+def num(v, fmt: str = ".2f") -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def p_fmt(v) -> str:
+    return "-" if v is None else (f"{v:.1e}" if v < 1e-3 else f"{v:.3f}")
+
+
+def wins(rows: list[dict], r: dict, key: str, match: tuple[str, ...]) -> str:
+    """'w/l': seeds where the cell is better / worse than its reference (None = worst)."""
+    if r.get("reference") is None:
+        return "-"
+    ref = next(x for x in rows if x["cell"] == r["reference"]
+               and all(x[k] == r[k] for k in match))
+    inf = float("inf")
+    a = [inf if v is None else v for v in r[key]]
+    b = [inf if v is None else v for v in ref[key]]
+    w = sum(x < y for x, y in zip(a, b, strict=True))
+    worse = sum(x > y for x, y in zip(a, b, strict=True))
+    return f"{w}/{worse}"
+
+
+def tsp() -> None:
+    rows = load("ablation_tsp.json")
+    if not rows:
+        return
+    for inst in dict.fromkeys(r["instance"] for r in rows):
+        for ls in dict.fromkeys(r["local_search"] for r in rows):
+            sel = [r for r in rows if r["instance"] == inst and r["local_search"] == ls]
+            if not sel:
+                continue
+            r0 = sel[0]
+            print(f"\n### {inst}, {'2-opt' if ls != 'none' else 'no local search'}: "
+                  f"{r0['tours']:,} tours ({r0['ants']} ants x {r0['iterations']}), "
+                  f"{r0['seeds']} seeds\n")
+            print("| cell | gap % mean [95% CI] | gap % at 25% budget | opt hit | "
+                  "Δ vs ref | better/worse seeds | p (Wilcoxon) | p Holm | "
+                  "gap % at equal time |")
+            print("|---|---|---|---|---|---|---|---|---|")
+            for r in sel:
+                print(f"| {r['cell']} | {r['gap_mean']:.2f} [{r['gap_ci_low']:.2f}, "
+                      f"{r['gap_ci_high']:.2f}] | {r['gap_mean_at_25pct']:.2f} | "
+                      f"{r['success_rate']:.2f} | {num(r.get('delta_gap_mean'), '+.2f')} | "
+                      f"{wins(rows, r, 'final_lengths', ('instance', 'local_search'))} | "
+                      f"{p_fmt(r.get('p_value'))} | {p_fmt(r.get('p_holm'))} | "
+                      f"{r['wall_gap_mean']:.2f} |")
+
+
+def constrained() -> None:
+    rows = load("ablation_constrained.json")
+    if not rows:
+        return
+    for prob in dict.fromkeys(r["problem"] for r in rows):
+        sel = [r for r in rows if r["problem"] == prob]
+        print(f"\n### {prob} derivative-free, {sel[0]['budget']:,} evaluations, "
+              f"{sel[0]['seeds']} seeds\n")
+        print("| cell | success | SP | error mean [95% CI] (feasible runs) | feasible | "
+              "better/worse seeds | p error (Holm) | p evals (Holm) |")
+        print("|---|---|---|---|---|---|---|---|")
+        for r in sel:
+            print(f"| {r['cell']} | {r['success_rate']:.2f} | "
+                  f"{num(r['success_performance'], ',.0f')} | {r['error_mean']:.3g} "
+                  f"[{r['error_ci_low']:.3g}, {r['error_ci_high']:.3g}] | "
+                  f"{r['feasible_rate']:.2f} | "
+                  f"{r.get('better_seeds', '-')}/{r.get('worse_seeds', '-')} | "
+                  f"{p_fmt(r.get('p_error_holm'))} | "
+                  f"{p_fmt(r.get('p_evaluations_holm'))} |")
+
+
+def cec() -> None:
+    rows = load("cec2006.json")
+    if not rows:
+        return
+    print("\n### CEC2006 (25 runs, 500,000 evaluations, success = feasible, f - f* <= 1e-4)\n")
+    print("| problem | mode | success | SP charged | SP finite-diff. (point) | "
+          "SP finite-diff. (per function) | εDE SP | best CEC2006 SP |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['problem']} ({r['paper_name']}) | {r['mode']} | "
+              f"{r['successes']}/{r['runs']} | {num(r['sp_charged'], ',.0f')} | "
+              f"{num(r['sp_fd'], ',.0f')} | {num(r['sp_fd_per_function'], ',.0f')} | "
+              f"{r['eps_de_sp']:,} | {r['best_cec2006_sp']:,} |")
+
+
+def paper() -> None:
+    t1 = load("paper/table1_tsp.json")
+    if t1:
+        print(f"\n### Table 1 (TSP {t1[0]['instance']}, no local search, "
+              f"{t1[0]['iterations'] * t1[0]['ants']:,} tours, target "
+              f"{t1[0]['target_gap_percent']:g} % above the optimum)\n")
+        print("| algorithm | s/iteration per run | iterations to convergence | hit target | "
+              "iterations (tours) to target | s to target | final gap % [CI] | stuck |")
+        print("|---|---|---|---|---|---|---|---|")
+        for r in t1:
+            print(f"| {r['algorithm']} | {r['seconds_per_iteration_per_run']:.5f} | "
+                  f"{r['iterations_to_convergence_mean']:.0f} | {r['success_rate']:.2f} | "
+                  f"{num(r['iterations_to_target_mean'], '.0f')} "
+                  f"({num(r.get('tours_to_target_mean'), ',.0f')}) | "
+                  f"{num(r['seconds_to_target_mean'], '.3f')} | {r['final_gap_mean']:.2f} "
+                  f"[{r['final_gap_ci_low']:.2f}, {r['final_gap_ci_high']:.2f}] | "
+                  f"{r['stuck_fraction']:.2f} |")
+    t2 = load("paper/table2.json")
+    if t2:
+        print("\n### Table 2 (G1-G4, derivative-free unless said, "
+              f"{t2[0]['budget']:,} evaluations, {t2[0]['seeds']} seeds)\n")
+        print("| problem | algorithm | success | iterations (evaluations) to target | "
+              "s to target | mean best [CI] | feasible | paper: iterations, mean best |")
+        print("|---|---|---|---|---|---|---|---|")
+        for r in t2:
+            paper_col = (f"{r['paper_iterations']}, {r['paper_mean_best']}"
+                         if r["algorithm"] in ("GA (LX-PM)", "SA", "EACO (derivative-free)")
+                         else "")
+            print(f"| {r['problem']} | {r['algorithm']} | {r['success_rate']:.2f} | "
+                  f"{num(r['iterations_to_target_mean'], '.0f')} "
+                  f"({num(r['evaluations_to_target_mean'], ',.0f')}) | "
+                  f"{num(r['seconds_to_target_mean'], '.2f')} | "
+                  f"{num(r.get('best_mean'), '.6g')} [{num(r.get('best_ci_low'), '.6g')}, "
+                  f"{num(r.get('best_ci_high'), '.6g')}] | {r['feasible_rate']:.2f} | "
+                  f"{paper_col} |")
+    t3 = load("paper/table3.json")
+    if t3:
+        print("\n### Table 3 (G1 = g01)\n")
+        print("| mode | q0, rho, p_c, p_m | success | iterations to target [CI] | "
+              "expected iterations | mean best | paper: iterations, best |")
+        print("|---|---|---|---|---|---|---|")
+        for r in t3:
+            print(f"| {r['mode']} | {r['q0']}, {r['rho']}, {r['p_crossover']}, "
+                  f"{r['p_mutation']} | {r['success_rate']:.2f} | "
+                  f"{num(r['iterations_to_target_mean'], '.1f')} "
+                  f"[{num(r.get('iterations_to_target_ci_low'), '.1f')}, "
+                  f"{num(r.get('iterations_to_target_ci_high'), '.1f')}] | "
+                  f"{num(r['expected_iterations_to_target'], '.1f')} | "
+                  f"{r['best_mean']:.5f} | {r['paper_iterations']}, "
+                  f"{r['paper_optimal_solution']} |")
+    for name, title in (("fig1", "Fig. 1"), ("fig9", "Fig. 9")):
+        rows = load(f"paper/{name}.json")
+        if not rows:
+            continue
+        print(f"\n### {title}\n")
+        for r in rows:
+            keep = {k: v for k, v in r.items() if not isinstance(v, list)}
+            print("- " + ", ".join(f"{k} {num(v, '.3g') if isinstance(v, float) else v}"
+                                   for k, v in keep.items()))
+
+
+if __name__ == "__main__":
+    print("# Evidence tables (generated by experiments/evidence_report.py)")
+    tsp()
+    constrained()
+    cec()
+    paper()
