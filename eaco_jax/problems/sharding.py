@@ -68,3 +68,38 @@ class Sharded:
 def shard(problem: Any, devices: Sequence[jax.Device] | None = None) -> Sharded:
     """Wrap ``problem`` so its colony evaluation is split over ``devices`` (default: all)."""
     return Sharded(problem=problem, mesh=ant_mesh(devices))
+
+
+# --------------------------------------------------------------------------- batch axes
+# (strategies.islands shards its island axis with these: the same constraint form)
+def device_mesh(num_devices: int | None = None) -> Mesh:
+    """A 1-D ``"ants"`` mesh over the first ``num_devices`` of *all* devices (default: all).
+
+    ``jax.devices()`` spans every process after ``jax.distributed.initialize``, so one mesh
+    covers every host; on one host it is the local devices.
+    """
+    devices = jax.devices()
+    if num_devices is not None:
+        if not 1 <= num_devices <= len(devices):
+            raise ConfigError(f"num_devices={num_devices} is not in 1..{len(devices)} "
+                              f"(the devices JAX sees)")
+        devices = devices[:num_devices]
+    return Mesh(np.array(devices), (AXIS,))
+
+
+def split_leading(tree: Any, mesh: Mesh) -> Any:
+    """Constrain every array leaf of ``tree`` to be split over ``mesh`` along its first axis
+    (scalars stay replicated). Under ``vmap`` the batch axis stays unsplit."""
+    split, whole = NamedSharding(mesh, P(AXIS)), NamedSharding(mesh, P())
+
+    def one(x: Any) -> Any:
+        return jax.lax.with_sharding_constraint(x, split if x.ndim else whole)
+
+    return jax.tree.map(one, tree)
+
+
+def replicated(tree: Any, mesh: Mesh) -> Any:
+    """Constrain every leaf of ``tree`` to be whole on every device of ``mesh`` (what the
+    host reads back each chunk: best-so-far, metrics; fetchable on every host)."""
+    whole = NamedSharding(mesh, P())
+    return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, whole), tree)
