@@ -133,7 +133,8 @@ class Islands(Strategy):
         return self.strategy.prepare(problem)
 
     def scalar_cost(self, fitness: PyTree) -> Array:
-        return self.strategy.scalar_cost(fitness)
+        # whole on every device: the colony statistics then sum in the unsharded order
+        return self._whole(self.strategy.scalar_cost(fitness))
 
     def best_fitness(self, state: IslandsState) -> PyTree:
         per_island = jax.vmap(self.strategy.best_fitness)(state.islands)
@@ -175,17 +176,19 @@ class Islands(Strategy):
 
         return jax.tree.map(leaf, template, params)
 
-    def _mesh(self):
-        from eaco_jax.problems.sharding import device_mesh
+    def _mesh(self) -> Any:
+        from eaco_jax.problems.sharding import island_mesh
 
-        return device_mesh(self.num_devices)
+        return island_mesh(self.islands, self.num_devices)
 
-    def _split(self, tree: PyTree) -> PyTree:
+    def _split(self, tree: PyTree, every_device: bool = False) -> PyTree:
+        """Islands split over the mesh's island groups (or, for the colony's ants,
+        ``every_device``)."""
         if not self.shard:
             return tree
-        from eaco_jax.problems.sharding import split_leading
+        from eaco_jax.problems.sharding import AXIS, ISLANDS, split_leading
 
-        return split_leading(tree, self._mesh())
+        return split_leading(tree, self._mesh(), (ISLANDS, AXIS) if every_device else ISLANDS)
 
     def _whole(self, tree: PyTree) -> PyTree:
         if not self.shard:
@@ -194,18 +197,26 @@ class Islands(Strategy):
 
         return replicated(tree, self._mesh())
 
+    def _place(self, state: IslandsState) -> IslandsState:
+        """Sharded: islands split over the mesh, the wrapper's own fields whole everywhere."""
+        if not self.shard:
+            return state
+        own = {f.name: getattr(state, f.name) for f in dataclasses.fields(state)
+               if f.name != "islands"}
+        return state.replace(islands=self._split(state.islands), **self._whole(own))
+
     def _with_global_best(self, state: IslandsState) -> IslandsState:
         """Base fields and best_f / best_violation from the best island."""
         f, v = island_objectives(state.islands)
         i = jnp.lexsort((f, v))[0]
         improved = (v[i] < state.best_violation) | (
             (v[i] == state.best_violation) & (f[i] < state.best_f))
-        pick = self._whole(dict(
+        pick = dict(
             best_solution=state.islands.best_solution[i],
             best_cost=state.islands.best_cost[i],
             best_f=f[i].astype(state.best_f.dtype),
             best_violation=v[i].astype(state.best_violation.dtype),
-            best_island=i.astype(jnp.int32)))
+            best_island=i.astype(jnp.int32))
         return state.replace(**pick, stagnation=jnp.where(improved, 0, state.stagnation + 1))
 
     # ----------------------------------------------------------------- init / ask / tell
@@ -213,7 +224,6 @@ class Islands(Strategy):
         per_island = self._island_params(params, problem)
         inner = jax.vmap(lambda k, p: self.strategy.init(k, problem, p))(
             self.island_keys(key), per_island)
-        inner = self._split(inner)
         f, v = island_objectives(inner)
         state = IslandsState(
             key=jax.random.fold_in(key, 0),
@@ -231,7 +241,7 @@ class Islands(Strategy):
             migration_key=jax.random.fold_in(key, 2),
         )
         state = self._with_global_best(state)
-        return state.replace(stagnation=jnp.zeros((), jnp.int32))
+        return self._place(state.replace(stagnation=jnp.zeros((), jnp.int32)))
 
     def _ask(self, key: Array, state: IslandsState, problem: Any) -> tuple[Array, IslandsState]:
         def one(s: State) -> tuple[Array, State]:  # as the driver steps a lone colony
@@ -239,11 +249,11 @@ class Islands(Strategy):
             return self.strategy.ask(ask_key, s.replace(key=k), problem)
 
         xs, inner = jax.vmap(one)(state.islands)
-        inner = self._split(inner)
         charged = jnp.sum(inner.evaluations - state.islands.evaluations)  # inside ask
-        solutions = self._split(xs.reshape((-1, *xs.shape[2:])))
-        return solutions, state.replace(islands=inner, migration_key=key,
-                                        evaluations=state.evaluations + charged)
+        solutions = self._split(xs.reshape((-1, *xs.shape[2:])), every_device=True)
+        state = state.replace(islands=inner, migration_key=key,
+                              evaluations=state.evaluations + charged)
+        return solutions, self._place(state)
 
     def _tell(
         self, state: IslandsState, solutions: Array, fitness: PyTree, problem: Any
@@ -260,13 +270,14 @@ class Islands(Strategy):
                 due, lambda i: migrate(self, i, xs, fs, state.migration_key), lambda i: i,
                 inner)
             migrations = migrations + due.astype(jnp.int32)
-        state = self._with_global_best(
-            state.replace(islands=self._split(inner), migrations=migrations))
+        state = self._place(self._with_global_best(
+            state.replace(islands=inner, migrations=migrations)))
         metrics = {"island_best_cost": inner.best_cost, "best_island": state.best_island,
                    "migrations": migrations}
         own = {"best_f": state.best_f, "best_violation": state.best_violation,
                "evaluations": state.evaluations + solutions.shape[0]}
-        for name, value in inner_metrics.items():
+        # island means / totals over whole arrays: the unsharded summation order, exactly
+        for name, value in self._whole(inner_metrics).items():
             if name in BASE_METRICS or name in metrics:
                 continue
             if name in own:
@@ -311,6 +322,8 @@ def emigrants(
     c, m = xs.shape[:2]
     best_x = islands.best_solution.astype(xs.dtype)
     best_f = jax.vmap(strategy.best_fitness)(islands)
+    if isinstance(fs, Evaluation) and not isinstance(best_f, Evaluation):  # default hook
+        best_f = Evaluation(f=best_f, violation=jnp.zeros_like(best_f))
     cand_x = jnp.concatenate([best_x[:, None], xs], axis=1)  # (C, m + 1, ...)
     cand_f = jax.tree.map(
         lambda b, f: jnp.concatenate([b[:, None].astype(f.dtype), f], axis=1), best_f, fs)
