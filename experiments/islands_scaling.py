@@ -326,14 +326,17 @@ def part_quality(args) -> list[dict]:
         for label, strategy in _quality_pair(GraphEACO, {}, args):
             gaps, iters = [], []
             for g in groups:
-                res = ea.minimize(problem, strategy, seed=g, iterations=10**9,
-                                  chunk_size=args.tsp_chunk, max_seconds=args.tsp_seconds)
+                budget = ({"iterations": args.tsp_iterations} if args.tsp_iterations else
+                          {"iterations": 10**9, "max_seconds": args.tsp_seconds})
+                res = ea.minimize(problem, strategy, seed=g, chunk_size=args.tsp_chunk,
+                                  **budget)
                 tours = np.asarray(res.best_solution).reshape(len(g), -1)
                 lengths = [tour_length(np.asarray(problem.dist), t) for t in tours]
                 gaps += [100.0 * (length / problem.optimum - 1.0) for length in lengths]
                 iters.append(int(res.iterations))
             record("tsp", name, label, strategy, gaps,
-                   {"metric": "gap_percent", "seconds_per_group": args.tsp_seconds,
+                   {"metric": "gap_percent", "iterations_budget": args.tsp_iterations,
+                    "seconds_per_group": None if args.tsp_iterations else args.tsp_seconds,
                     "group": args.group, "iterations_per_group": iters})
         compare(name, "gap_percent")
 
@@ -400,6 +403,8 @@ def main() -> None:
     ap.add_argument("--tsp-instances", default="pcb442,pr1002")
     ap.add_argument("--tsp-seconds", type=float, default=60.0,
                     help="wall seconds per group of seeds (compilation excluded)")
+    ap.add_argument("--tsp-iterations", type=int, default=None,
+                    help="fixed iterations (= evaluations) instead of --tsp-seconds")
     ap.add_argument("--cec-problems", default="g10,g13")
     ap.add_argument("--cec-evaluations", type=int, default=200_000)
     ap.add_argument("--gait-quality", action="store_true")

@@ -20,6 +20,7 @@ HERE = Path(__file__).resolve().parent
 ONE_PROCESS = textwrap.dedent(
     """
     import math, sys; sys.path.insert(0, {here!r})
+    from pathlib import Path
     import jax, jax.numpy as jnp, numpy as np
     assert len(jax.devices()) == 4, jax.devices()
     import eaco_jax as ea
@@ -81,6 +82,16 @@ ONE_PROCESS = textwrap.dedent(
                if op in hlo]
         assert ops, "no collective in the sharded program"
         print(kw["topology"], c, "islands: collectives", ops)
+        if kw["topology"] == "ring":  # exact resume of a sharded run (restored unsharded)
+            import shutil, tempfile
+            folder = Path(tempfile.mkdtemp())
+            w = Islands(every=1, shard=True, **kw)
+            go = lambda: ea.minimize(problem, w, seed=seed, iterations=4, chunk_size=2,
+                                     checkpointing=ea.Checkpointing(folder, every=2))
+            go()
+            shutil.rmtree(folder / "4")
+            same(many.state, go().state, "resumed: ")
+            shutil.rmtree(folder)
     print("ISLANDS-SHARDING-OK")
     """
 )

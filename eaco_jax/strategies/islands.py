@@ -25,11 +25,13 @@ Migration (a pure function of the state, :func:`migrate`):
 running each island's key alone (tested). The wrapper's own best-so-far is the best island's
 (by violation, then objective), ``metrics["island_best_cost"]`` the per-island best.
 
-Sharding (``shard=True``): the island axis of the state and the colony's ant axis are
-constrained to be split over a 1-D mesh of ``num_devices`` devices (default all, on every host
-after ``jax.distributed.initialize``); XLA runs each device's islands there, and migration
-(a roll or gather over the island axis) becomes a collective. Results equal the unsharded run.
-What the host reads (best-so-far, metrics) is replicated.
+Sharding (``shard=True``): the island axis of the state is split over a mesh of
+``num_devices`` devices (default all, on every host after ``jax.distributed.initialize``) in
+gcd(C, devices) groups, and the colony's ants over every device, with sharding constraints; XLA
+runs each device's islands there, and migration (a roll or gather over the island axis) becomes
+a collective. With C a multiple of the device count each device holds C / devices islands. What
+the host reads (best-so-far, metrics) is replicated. See docs/islands.md (also for why results
+agree with the unsharded run bit for bit for some strategies and to float rounding for others).
 """
 
 from __future__ import annotations
