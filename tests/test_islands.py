@@ -263,3 +263,15 @@ def test_heterogeneous_params_and_checks(burma):
     with pytest.raises(ConfigError):
         Islands(INNER, migrants=6)  # 4 ants + the best-so-far
     assert w.num_ants == 8 and w.problem_kind == "graph"
+
+
+def test_float64_continuous_islands_keep_their_dtypes():
+    from eaco_jax.problems import float64
+
+    with float64():
+        problem = functions.sphere(dim=2)
+        inner = ContinuousEACO(num_ants=3, archive_size=4, refine_ants=0, repair_steps=0)
+        res = ea.minimize(problem, Islands(inner, islands=2, every=1), seed=0, iterations=2)
+    assert res.state.best_f.dtype == np.float64 and res.state.evaluations.dtype == np.int32
+    assert int(res.state.migrations) == 2 and np.isfinite(res.f)
+    assert float(res.f) == float(np.asarray(res.state.islands.best_f).min())

@@ -252,6 +252,7 @@ class Islands(Strategy):
 
         xs, inner = jax.vmap(one)(state.islands)
         charged = jnp.sum(inner.evaluations - state.islands.evaluations)  # inside ask
+        charged = charged.astype(state.evaluations.dtype)  # (x64 would widen the sum)
         solutions = self._split(xs.reshape((-1, *xs.shape[2:])), every_device=True)
         state = state.replace(islands=inner, migration_key=key,
                               evaluations=state.evaluations + charged)
@@ -287,7 +288,7 @@ class Islands(Strategy):
             elif jnp.issubdtype(value.dtype, jnp.floating):
                 metrics[name] = jnp.mean(value, axis=0).astype(value.dtype)  # island mean
             else:
-                metrics[name] = jnp.sum(value, axis=0)  # counts: island total
+                metrics[name] = jnp.sum(value, axis=0).astype(value.dtype)  # island total
         return state, self._whole(metrics)
 
 
