@@ -323,7 +323,7 @@ def part_quality(args) -> list[dict]:
 
     for name in args.tsp_instances:
         problem = load_tsplib(name)
-        for label, strategy in _quality_pair(GraphEACO, {}, args):
+        for label, strategy in _quality_pair(GraphEACO, {"local_search": args.tsp_ls}, args):
             gaps, iters = [], []
             for g in groups:
                 budget = ({"iterations": args.tsp_iterations} if args.tsp_iterations else
@@ -405,6 +405,8 @@ def main() -> None:
                     help="wall seconds per group of seeds (compilation excluded)")
     ap.add_argument("--tsp-iterations", type=int, default=None,
                     help="fixed iterations (= evaluations) instead of --tsp-seconds")
+    ap.add_argument("--tsp-ls", default="2opt", choices=["2opt", "none"],
+                    help="quality: GraphEACO local search")
     ap.add_argument("--cec-problems", default="g10,g13")
     ap.add_argument("--cec-evaluations", type=int, default=200_000)
     ap.add_argument("--gait-quality", action="store_true")
