@@ -179,7 +179,9 @@ def _from_disk(restored: Any, template: Any, where: Path) -> Any:
                 f"checkpoint in {where} holds a {r.dtype}{tuple(r.shape)} leaf where this run "
                 f"has {t.dtype}{tuple(t.shape)}; use another --checkpoint-dir"
             )
-        return jax.device_put(r)
+        # uncommitted, as strong_types leaves a fresh state: the same compiled chunk serves
+        # both, and a strategy's sharding constraints (Islands) place it inside the program
+        return r if _is_key(t) else jax.device_put(np.asarray(r))
 
     return jax.tree.map(fix, template, restored)
 

@@ -13,6 +13,7 @@ the sharding-constraint form ran there: see ``experiments/multi_device_gait.py``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -68,3 +69,46 @@ class Sharded:
 def shard(problem: Any, devices: Sequence[jax.Device] | None = None) -> Sharded:
     """Wrap ``problem`` so its colony evaluation is split over ``devices`` (default: all)."""
     return Sharded(problem=problem, mesh=ant_mesh(devices))
+
+
+# --------------------------------------------------------------------------- island axis
+# (strategies.islands shards its island axis with these: the same constraint form)
+ISLANDS = "islands"
+
+
+def island_mesh(islands: int, num_devices: int | None = None) -> Mesh:
+    """A 2-D mesh ``("islands", "ants")`` over the first ``num_devices`` of *all* devices.
+
+    Its ``"islands"`` axis has ``gcd(islands, devices)`` entries, so a state with ``islands``
+    rows splits evenly over it (jit outputs cannot be split unevenly) and is replicated over
+    ``"ants"``; a colony's ant axis is split over both axes, i.e. every device. With
+    ``islands`` a multiple of the device count, every device holds ``islands / devices``
+    islands. ``jax.devices()`` spans every process after ``jax.distributed.initialize``, so
+    the mesh covers every host.
+    """
+    devices = jax.devices()
+    if num_devices is not None:
+        if not 1 <= num_devices <= len(devices):
+            raise ConfigError(f"num_devices={num_devices} is not in 1..{len(devices)} "
+                              f"(the devices JAX sees)")
+        devices = devices[:num_devices]
+    groups = math.gcd(int(islands), len(devices))
+    return Mesh(np.array(devices).reshape(groups, -1), (ISLANDS, AXIS))
+
+
+def split_leading(tree: Any, mesh: Mesh, axes: str | tuple[str, ...]) -> Any:
+    """Constrain every array leaf of ``tree`` to be split along its first axis over the mesh
+    axes ``axes`` (scalars: whole). Under ``vmap`` the batch axis stays unsplit."""
+    split, whole = NamedSharding(mesh, P(axes)), NamedSharding(mesh, P())
+
+    def one(x: Any) -> Any:
+        return jax.lax.with_sharding_constraint(x, split if x.ndim else whole)
+
+    return jax.tree.map(one, tree)
+
+
+def replicated(tree: Any, mesh: Mesh) -> Any:
+    """Constrain every leaf of ``tree`` to be whole on every device of ``mesh`` (what the
+    host reads back each chunk: best-so-far, metrics; fetchable on every host)."""
+    whole = NamedSharding(mesh, P())
+    return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, whole), tree)

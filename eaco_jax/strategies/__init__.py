@@ -18,6 +18,7 @@ from eaco_jax.strategies.ant_system import AntSystem
 from eaco_jax.strategies.base import State, Strategy
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO, ContinuousParams, ContinuousState
 from eaco_jax.strategies.graph_eaco import GraphEACO, GraphParams, GraphState
+from eaco_jax.strategies.islands import Islands, IslandsState
 from eaco_jax.strategies.path_eaco import PathEACO, PathParams, PathState
 from eaco_jax.strategies.pso import PSO
 from eaco_jax.strategies.random_search import RandomSearch, RandomTours
@@ -68,7 +69,7 @@ def get(name: str, **fields: Any) -> Strategy:
 
 __all__ = [
     "State", "Strategy", "ContinuousEACO", "ContinuousParams", "ContinuousState", "GraphEACO",
-    "GraphParams", "GraphState", "PathEACO", "PathParams", "PathState", "AntSystem",
-    "AntColonySystem", "TourAnnealing", "TourTabu", "RandomTours", "RandomSearch", "PSO",
-    "RealGA", "SimulatedAnnealing", "TabuSearch", "get", "names",
+    "GraphParams", "GraphState", "Islands", "IslandsState", "PathEACO", "PathParams",
+    "PathState", "AntSystem", "AntColonySystem", "TourAnnealing", "TourTabu", "RandomTours",
+    "RandomSearch", "PSO", "RealGA", "SimulatedAnnealing", "TabuSearch", "get", "names",
 ]

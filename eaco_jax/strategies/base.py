@@ -251,6 +251,26 @@ class Strategy:
         name -> the switch that would make it act. Default: none."""
         return {}
 
+    # ----------------------------------------------------------------- migration hooks
+    # (used by strategies.islands.Islands; plain functions of the state, not jitted here)
+    def best_fitness(self, state: State) -> PyTree:
+        """Fitness of ``state.best_solution`` in the form ``tell`` receives (default: the
+        scalar ``best_cost``), so an island's best-so-far can migrate with its fitness."""
+        return state.best_cost
+
+    def immigrate(
+        self, state: State, solutions: Array, fitness: PyTree, key: Array,
+        replace: str = "worst",
+    ) -> State:
+        """Take ``k`` migrants ``solutions`` (``(k, ...)``, already evaluated) from another
+        island. ``replace`` ("worst" or "random") says which members of a population they
+        displace (see :func:`replacement_slots`); ``key`` draws the random ones.
+
+        Default: the best migrant becomes the best-so-far if it is better
+        (:func:`adopt_best`); strategies with a population or trails override this.
+        """
+        return adopt_best(state, solutions, self.scalar_cost(fitness))
+
     # ----------------------------------------------------------------- public, jitted
     def init(self, key: Array, problem: Any, params: PyTree | None = None) -> State:
         """Fresh colony state for ``problem`` (nothing is evaluated).
@@ -307,3 +327,33 @@ def record_best(state: State, solutions: Array, cost: Array) -> State:
         best_cost=jnp.where(improved, cost[i], state.best_cost).astype(jnp.float32),
         stagnation=jnp.where(improved, 0, state.stagnation + 1),
     )
+
+
+def adopt_best(state: State, solutions: Array, cost: Array) -> State:
+    """Best-so-far from ``solutions`` not produced by this colony (migrants): like
+    :func:`record_best`, but stagnation only changes (to 0) when the record improves."""
+    i = jnp.argmin(cost)
+    improved = cost[i] < state.best_cost
+    return state.replace(
+        best_solution=jnp.where(improved, solutions[i], state.best_solution),
+        best_cost=jnp.where(improved, cost[i], state.best_cost).astype(jnp.float32),
+        stagnation=jnp.where(improved, 0, state.stagnation),
+    )
+
+
+def replacement_slots(key: Array, size: int, k: int, replace: str) -> Array:
+    """Which ``k`` members of a best-first population of ``size`` migrants replace.
+
+    ``"worst"``: the last ``k`` ranks. ``"random"``: ``k`` distinct random ranks, never rank 0
+    (the population's best survives, as elitism requires).
+    """
+    if replace == "worst":
+        if k > size:
+            raise ConfigError(f"{k} migrants cannot replace members of a population of {size}")
+        return jnp.arange(size - k, size)
+    if replace == "random":
+        if k > size - 1:
+            raise ConfigError(f"{k} migrants cannot replace random non-best members of a "
+                              f"population of {size}")
+        return 1 + jax.random.permutation(key, size - 1)[:k]
+    raise ConfigError(f"replace={replace!r} is not one of ('worst', 'random')")

@@ -73,6 +73,7 @@ from eaco_jax.strategies.base import (
     Strategy,
     as_params,
     base_fields,
+    replacement_slots,
 )
 
 Array = jax.Array
@@ -422,6 +423,41 @@ class ContinuousEACO(Strategy):
     def scalar_cost(self, fitness: Evaluation) -> Array:
         """Objective of feasible ants, +inf for infeasible ones (iteration statistics)."""
         return jnp.where(fitness.violation > 0, jnp.inf, fitness.f).astype(jnp.float32)
+
+    # ----------------------------------------------------------------- islands (migration)
+    def best_fitness(self, state: ContinuousState) -> Evaluation:
+        return Evaluation(f=state.best_f, violation=state.best_violation)
+
+    def immigrate(
+        self, state: ContinuousState, solutions: Array, fitness: Evaluation, key: Array,
+        replace: str = "worst",
+    ) -> ContinuousState:
+        """Migrants replace the archive's worst (or random non-best) members, the archive is
+        re-ranked, and the best-so-far adopts the best migrant by Deb's rules. A migrant that
+        is already in the archive leaves its slot unchanged (no duplicates)."""
+        p = state.params
+        x = solutions.astype(state.archive_x.dtype)
+        f = fitness.f.astype(state.archive_f.dtype)
+        v = fitness.violation.astype(state.archive_v.dtype)
+        slots = replacement_slots(key, self.archive_size, x.shape[0], replace)
+        fresh = ~jnp.any(jnp.all(x[:, None, :] == state.archive_x[None, :, :], axis=-1), axis=-1)
+        ax = state.archive_x.at[slots].set(jnp.where(fresh[:, None], x, state.archive_x[slots]))
+        af = state.archive_f.at[slots].set(jnp.where(fresh, f, state.archive_f[slots]))
+        av = state.archive_v.at[slots].set(jnp.where(fresh, v, state.archive_v[slots]))
+        order = self._order(af, av, p, state.epsilon)
+        i = ch.rank_order(f, v, "deb")[0]
+        improved = ch.better(f[i], v[i], state.best_f, state.best_violation, "deb")
+        significant = state.best_f - f[i] > 1e-9 * (1.0 + jnp.abs(state.best_f))
+        progress = improved & ((state.best_violation > 0) | significant)
+        best_f = jnp.where(improved, f[i], state.best_f)
+        best_v = jnp.where(improved, v[i], state.best_violation)
+        return state.replace(
+            archive_x=ax[order], archive_f=af[order], archive_v=av[order],
+            best_f=best_f, best_violation=best_v,
+            best_solution=jnp.where(improved, x[i], state.best_solution),
+            best_cost=jnp.where(best_v > 0, jnp.inf, best_f).astype(jnp.float32),
+            stagnation=jnp.where(progress, 0, state.stagnation),
+        )
 
 
 def _num_constraints(problem: Any) -> int:

@@ -74,6 +74,7 @@ from eaco_jax.strategies.base import (
     Range,
     State,
     Strategy,
+    adopt_best,
     as_params,
     base_fields,
     record_best,
@@ -514,3 +515,24 @@ class GraphEACO(Strategy):
             "tau_max": tau_max,
         }
         return state, metrics
+
+    # ------------------------------------------------------------------ islands (migration)
+    def immigrate(
+        self, state: GraphState, solutions: Array, fitness: Array, key: Array,
+        replace: str = "worst",
+    ) -> GraphState:
+        """Migrant tours enter the best-so-far and MMAS restart-best records, the tours the
+        global update deposits on and crossover pairs with (there is no population, so
+        ``replace`` has nothing to choose); an improvement resets the restart counter."""
+        p = state.params
+        lengths = fitness.astype(jnp.float32)
+        previous_best = state.best_cost
+        state = adopt_best(state, solutions, lengths)
+        i = jnp.argmin(lengths)
+        rb_better = lengths[i] < state.restart_best_cost
+        improved = jnp.where(p.use_restart_best, rb_better, state.best_cost < previous_best)
+        return state.replace(
+            restart_best_solution=jnp.where(rb_better, solutions[i], state.restart_best_solution),
+            restart_best_cost=jnp.where(rb_better, lengths[i], state.restart_best_cost),
+            since_improvement=jnp.where(improved, 0, state.since_improvement),
+        )
