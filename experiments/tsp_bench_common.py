@@ -4,19 +4,16 @@
   (``--data-dir``; default ``$EACO_TSPLIB_DIR``, ``out/tsplib`` and ``shared/data/tsplib``
   beside the repository, ``/work/shared/data/tsplib``) with its optimum from that folder's
   ``optima.csv``.
-* :func:`run_timed` runs ``eaco_jax.minimize`` for a wall-time budget and records the best
-  length after every chunk: through ``minimize(..., max_seconds=S)`` when the driver has it,
-  otherwise by stopping from the ``on_chunk`` callback. Compile time is reported apart.
+* :func:`run_timed` runs ``eaco_jax.minimize(..., max_seconds=S)`` and records the best
+  length after every chunk (a ``callback``). Compile time is reported apart.
 * :func:`device_info` names the device and versions for the JSON files.
 """
 
 from __future__ import annotations
 
 import csv
-import inspect
 import os
 import platform
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -79,51 +76,31 @@ def enable_compile_cache(path: Path | None) -> None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
 
 
-class _Budget(Exception):
-    """Raised from on_chunk to end a run whose wall-time budget is spent (fallback mode)."""
-
-
 def run_timed(problem, strategy, seed: int, seconds: float, chunk: int,
               max_iterations: int = 10**7) -> dict:
-    """One seeded run for ``seconds`` of search after compilation.
+    """One seeded run for ``seconds`` of search after compilation (``max_seconds``).
 
-    Returns ``trace`` (list of ``[seconds_after_compile, best_length, iterations]`` after each
-    chunk), ``compile_seconds``, ``best`` and whether the driver's ``max_seconds`` was used.
-    In the fallback, the first chunk's time minus the median chunk time counts as compile time
-    and the trace clock starts at the end of the first chunk minus one median chunk.
+    Returns ``trace`` (``[seconds_after_compile, best_length, iterations]`` after every chunk,
+    the driver's compute clock, compilation excluded), ``compile_seconds`` (this call's; 0 when
+    the compiled chunk came from this process's cache) and ``best``.
     """
     import numpy as np
 
     from eaco_jax import minimize
 
-    marks: list[tuple[float, float, int]] = []
-    t_call = time.perf_counter()
-    native = "max_seconds" in inspect.signature(minimize).parameters
+    trace: list[list] = []
 
-    def on_chunk(state, done):
-        best = float(np.min(np.asarray(state.best_cost)))
-        marks.append((time.perf_counter(), best, int(done)))
-        if not native and len(marks) > 1 and marks[-1][0] - marks[0][0] >= seconds:
-            raise _Budget
+    def record(state, progress) -> None:
+        trace.append([round(progress.seconds, 4), float(np.min(np.asarray(state.best_cost))),
+                      int(progress.iterations)])
 
-    kw = {"max_seconds": seconds} if native else {}
-    compile_s = None
-    try:
-        res = minimize(problem, strategy, seed=seed, iterations=max_iterations,
-                       chunk_size=chunk, on_chunk=on_chunk, **kw)
-        compile_s = float(getattr(res, "compile_seconds", 0.0) or 0.0)
-    except _Budget:
-        pass
-    times = np.array([m[0] for m in marks])
-    chunk_s = float(np.median(np.diff(times))) if len(times) > 2 else 0.0
-    first = times[0] - t_call
-    if compile_s is None or not native:
-        compile_s = max(first - chunk_s, 0.0)
-    t0 = t_call + compile_s
-    trace = [[round(t - t0, 4), b, it] for t, b, it in marks]
-    return {"seed": seed, "compile_seconds": compile_s, "chunk_seconds": chunk_s,
-            "native_budget": native, "best": trace[-1][1] if trace else None,
-            "iterations": trace[-1][2] if trace else 0, "trace": trace}
+    res = minimize(problem, strategy, seed=seed, iterations=max_iterations, chunk_size=chunk,
+                   callback=record, max_seconds=seconds)
+    chunk_s = float(np.median(np.diff([0.0] + [t for t, _, _ in trace]))) if trace else 0.0
+    return {"seed": seed, "compile_seconds": float(res.compile_seconds),
+            "chunk_seconds": chunk_s, "best": trace[-1][1] if trace else None,
+            "iterations": trace[-1][2] if trace else 0, "stop_reason": res.stop_reason,
+            "trace": trace}
 
 
 def best_at(trace: list, t: float) -> float | None:

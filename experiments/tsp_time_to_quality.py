@@ -1,11 +1,10 @@
 """Gap to the optimum against wall time (issue 15, item 5), with ACOTSP alongside on the CPU.
 
 Per instance and seed, one ``eaco_jax.minimize`` run of ``GraphEACO`` (``--ants``,
-``--local-search``, ``--ls-best-k``) for ``--seconds`` of search after compilation (through
-the driver's ``max_seconds`` when it has one, else stopped from ``on_chunk``; see
-``tsp_bench_common.run_timed``). The best length after every chunk gives a curve; the table
-shows the mean gap over seeds at ``--checkpoints`` seconds, after compilation and from the call
-(compile included). With ``--acotsp PATH`` (a binary built outside this repository) ACOTSP runs
+``--local-search``, ``--ls-best-k``) for ``--seconds`` of search after compilation (the
+driver's ``max_seconds``; see ``tsp_bench_common.run_timed``). The best length after every
+chunk gives a curve; the table shows the mean gap over seeds at ``--checkpoints`` seconds,
+after compilation and from the call (compile included). With ``--acotsp PATH`` (a binary built outside this repository) ACOTSP runs
 each seed for the same time, MMAS with ``--acotsp-ants`` ants and each local search of
 ``--acotsp-ls`` (2: 2-opt, 3: 3-opt), one process at a time: pin with ``taskset -c N`` and
 compare on the same core. Writes JSON (device, versions, every trace) and a PNG of the curves.
@@ -73,7 +72,8 @@ def run_acotsp_trace(binary: Path, tsp: Path, seconds: float, seed: int, ls: int
 
 def summarize(traces: list[list], optimum: float, checkpoints: list[float],
               offsets: list[float] | None = None) -> dict:
-    """Mean gap (%) over runs at each checkpoint (runs with nothing yet count as missing)."""
+    """Mean gap (%) over runs at each checkpoint; None until every run has a tour (a mean
+    over the runs that finished compiling would flatter the slow ones away)."""
     out = {}
     for t in checkpoints:
         gaps = []
@@ -81,7 +81,8 @@ def summarize(traces: list[list], optimum: float, checkpoints: list[float],
             b = best_at(tr, t - (offsets[i] if offsets else 0.0))
             if b is not None:
                 gaps.append(100.0 * (b / optimum - 1.0))
-        out[str(t)] = {"mean_gap_percent": statistics.mean(gaps) if gaps else None,
+        out[str(t)] = {"mean_gap_percent": statistics.mean(gaps)
+                       if len(gaps) == len(traces) else None,
                        "runs_with_result": len(gaps)}
     return out
 
