@@ -4,8 +4,8 @@ Per instance and seed, one ``eaco_jax.minimize`` run of ``GraphEACO`` (``--ants`
 ``--local-search``, ``--ls-best-k``) for ``--seconds`` of search after compilation (the
 driver's ``max_seconds``; see ``tsp_bench_common.run_timed``). The best length after every
 chunk gives a curve; the table shows the mean gap over seeds at ``--checkpoints`` seconds,
-after compilation and from the call (compile included). With ``--acotsp PATH`` (a binary built outside this repository) ACOTSP runs
-each seed for the same time, MMAS with ``--acotsp-ants`` ants and each local search of
+after compilation and from the call (compile included). With ``--acotsp PATH`` (a binary
+built outside this repository) ACOTSP runs each seed for the same time, MMAS with ``--acotsp-ants`` ants and each local search of
 ``--acotsp-ls`` (2: 2-opt, 3: 3-opt), one process at a time: pin with ``taskset -c N`` and
 compare on the same core. Writes JSON (device, versions, every trace) and a PNG of the curves.
 
