@@ -7,7 +7,8 @@ chunk gives a curve; the table shows the mean gap over seeds at ``--checkpoints`
 after compilation and from the call (compile included). With ``--acotsp PATH`` (a binary
 built outside this repository) ACOTSP runs each seed for the same time, MMAS with
 ``--acotsp-ants`` ants and each local search of ``--acotsp-ls`` (2: 2-opt, 3: 3-opt), one
-process at a time: pin with ``taskset -c N`` and compare on the same core. Writes JSON (device, versions, every trace) and a PNG of the curves.
+process at a time: pin with ``taskset -c N`` and compare on the same core. Writes JSON
+(device, versions, every trace) and a PNG of the curves.
 
     taskset -c 1 python experiments/tsp_time_to_quality.py --instances pcb442 a280 \\
         --seconds 10 --checkpoints 1 3 10 --acotsp ~/ACOTSP/acotsp        # CPU, one core
