@@ -11,7 +11,7 @@
 #   bash experiments/gpu_session.sh warp-a       # call 2, carry .wa
 #   bash experiments/gpu_session.sh warp-b       # call 3, carry .wb
 #   source experiments/gpu_session.sh env        # then any experiment below
-set -euo pipefail
+[[ "${BASH_SOURCE[0]}" == "$0" ]] && set -euo pipefail  # not when sourced: a caller's shell
 SITE=/tmp/site
 EACO=/tmp/eaco
 
