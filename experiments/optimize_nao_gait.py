@@ -39,6 +39,7 @@ from pathlib import Path
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
+import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -49,6 +50,24 @@ from eaco_jax.problems.gait import make_gait_problem  # noqa: E402
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO  # noqa: E402
 
 KEYS = ("speed_mps", "distance_m", "fell", "drift_deg", "fitness", "fall_time")
+
+
+def run_info(problem) -> dict:
+    """Device and versions for the stored JSON."""
+    import importlib.metadata as md
+    import sys
+
+    def version(name: str) -> str | None:
+        try:
+            return md.version(name)
+        except md.PackageNotFoundError:
+            return None
+
+    dev = jax.devices()[0]
+    return {"device": getattr(dev, "device_kind", str(dev)), "platform": dev.platform,
+            "mjx_impl": getattr(problem, "impl", None) if problem.backend == "mjx" else None, "python": sys.version.split()[0],
+            **{k: version(k) for k in ("jax", "mujoco", "mujoco-mjx", "warp-lang")},
+            "argv": sys.argv[1:]}
 
 
 def main() -> None:
@@ -117,6 +136,7 @@ def main() -> None:
           f"{args.horizon} s (~{steps / seconds:.0f} physics steps/s incl. compile)")
     verified = verify(problem, best, args)
     out = {
+        "info": run_info(problem),
         "robot": args.robot,
         "slope_deg": args.slope,
         "direction_deg": args.direction,
