@@ -65,7 +65,8 @@ def run_info(problem) -> dict:
 
     dev = jax.devices()[0]
     return {"device": getattr(dev, "device_kind", str(dev)), "platform": dev.platform,
-            "mjx_impl": problem.impl if problem.backend == "mjx" else None, "python": sys.version.split()[0],
+            "mjx_impl": problem.impl if problem.backend == "mjx" else None,
+            "python": sys.version.split()[0],
             **{k: version(k) for k in ("jax", "mujoco", "mujoco-mjx", "warp-lang")},
             "argv": sys.argv[1:]}
 
