@@ -193,8 +193,9 @@ def section_agreement(args, extra: list[np.ndarray]) -> dict[str, Any]:
                                   robust=robust, impl=impl)
             worlds = None if robust is None else q.worlds()
             r = jax.jit(lambda x, q=q, w=worlds: q.rollout(x, w))(x)
-            res[f"{backend}-{impl}"] = {k: np.asarray(r[k]) for k in ("distance_m", "fell")}
-        ref = res["native-jax"]
+            name = "native" if backend == "native" else f"{backend}-{impl}"
+            res[name] = {k: np.asarray(r[k]) for k in ("distance_m", "fell")}
+        ref = res["native"]  # the reference row (files before 2026-11-23 call it native-jax)
         table = {}
         for name, r in res.items():
             dd = np.abs(r["distance_m"] - ref["distance_m"])
