@@ -49,10 +49,31 @@ def wins(rows: list[dict], r: dict, key: str, match: tuple[str, ...]) -> str:
     return f"{w}/{worse}"
 
 
+TSP_KEYS = ("instances", "modes", "tours_none", "tours_2opt", "seeds")
+CON_KEYS = ("problems", "budget", "seeds")
+
+
+def run_note(name: str, keys: tuple[str, ...] = ()) -> None:
+    """One line on how a JSON was made: device, cores, note; a merged file's parts."""
+    m = meta(name)
+    if not m:
+        return
+    parts = m.get("parts") or [m]
+    bits = []
+    for q in parts:
+        what = ", ".join(f"{k} {q[k]}" for k in keys if k in q)
+        bits.append(f"{what} on {q.get('device', '?')}"
+                    + (f" ({q['cpu_cores']} cores)" if "cpu_cores" in q else ""))
+    print(f"\n_`{name}`: " + "; ".join(bits)
+          + (f". Note: {m['note']}" if m.get("note") else "") + "._")
+
+
 def tsp() -> None:
     rows = load("ablation_tsp.json")
     if not rows:
         return
+    print("\n## TSP ablation (`experiments/ablation.py tsp`)")
+    run_note("ablation_tsp.json", TSP_KEYS)
     for inst in dict.fromkeys(r["instance"] for r in rows):
         for ls in dict.fromkeys(r["local_search"] for r in rows):
             sel = [r for r in rows if r["instance"] == inst and r["local_search"] == ls]
@@ -79,6 +100,8 @@ def constrained() -> None:
     rows = load("ablation_constrained.json")
     if not rows:
         return
+    print("\n## Constrained ablation (`experiments/ablation.py constrained`)")
+    run_note("ablation_constrained.json", CON_KEYS)
     for prob in dict.fromkeys(r["problem"] for r in rows):
         sel = [r for r in rows if r["problem"] == prob]
         print(f"\n### {prob} derivative-free, {sel[0]['budget']:,} evaluations, "
@@ -100,6 +123,8 @@ def cec() -> None:
     rows = load("cec2006.json")
     if not rows:
         return
+    print("\n## CEC2006")
+    run_note("cec2006.json", ("budget", "runs", "method"))
     print("\n### CEC2006 (25 runs, 500,000 evaluations, success = feasible, f - f* <= 1e-4)\n")
     print("| problem | mode | success | SP charged | SP finite-diff. (point) | "
           "SP finite-diff. (per function) | εDE SP | best CEC2006 SP |")
@@ -112,8 +137,12 @@ def cec() -> None:
 
 
 def paper() -> None:
+    if any((RESULTS / f"paper/{n}.json").exists()
+           for n in ("table1_tsp", "table2", "table3", "fig1", "fig9")):
+        print("\n## The paper's tables (`experiments/paper/paper.py`)")
     t1 = load("paper/table1_tsp.json")
     if t1:
+        run_note("paper/table1_tsp.json", ("instance", "tours", "ants", "seeds"))
         print(f"\n### Table 1 (TSP {t1[0]['instance']}, no local search, "
               f"{t1[0]['iterations'] * t1[0]['ants']:,} tours, target "
               f"{t1[0]['target_gap_percent']:g} % above the optimum)\n")
@@ -130,6 +159,7 @@ def paper() -> None:
                   f"{r['stuck_fraction']:.2f} |")
     t2 = load("paper/table2.json")
     if t2:
+        run_note("paper/table2.json", CON_KEYS)
         print("\n### Table 2 (G1-G4, derivative-free unless said, "
               f"{t2[0]['budget']:,} evaluations, {t2[0]['seeds']} seeds)\n")
         print("| problem | algorithm | success | iterations (evaluations) to target | "
@@ -148,6 +178,7 @@ def paper() -> None:
                   f"{paper_col} |")
     t3 = load("paper/table3.json")
     if t3:
+        run_note("paper/table3.json", ("budget", "seeds"))
         print("\n### Table 3 (G1 = g01)\n")
         print("| mode | q0, rho, p_c, p_m | success | iterations to target [CI] | "
               "expected iterations | mean best | paper: iterations, best |")
@@ -165,7 +196,9 @@ def paper() -> None:
         rows = load(f"paper/{name}.json")
         if not rows:
             continue
-        print(f"\n### {title}\n")
+        print(f"\n### {title}")
+        run_note(f"paper/{name}.json", ("instance", "tours", "ants", "seeds"))
+        print()
         for r in rows:
             keep = {k: v for k, v in r.items() if not isinstance(v, list)}
             print("- " + ", ".join(f"{k} {num(v, '.3g') if isinstance(v, float) else v}"
