@@ -74,6 +74,17 @@ def tsp() -> None:
         return
     print("\n## TSP ablation (`experiments/ablation.py tsp`)")
     run_note("ablation_tsp.json", TSP_KEYS)
+    sig = [r for r in rows if r.get("p_holm") is not None and r["p_holm"] < 0.05]
+    print("\nCells different from their reference (paired Wilcoxon on the final lengths, "
+          "Holm-adjusted within each instance x mode, p < 0.05):\n")
+    for r in sig:
+        print(f"- {r['instance']}, {'2-opt' if r['local_search'] != 'none' else 'no LS'}, "
+              f"**{r['cell']}** vs {r['reference']}: gap {r['gap_mean']:.2f} % "
+              f"[{r['gap_ci_low']:.2f}, {r['gap_ci_high']:.2f}] "
+              f"({'worse' if r['delta_gap_mean'] > 0 else 'better'}, "
+              f"{r['delta_gap_mean']:+.2f} points), p Holm {p_fmt(r['p_holm'])}")
+    if not sig:
+        print("- none")
     for inst in dict.fromkeys(r["instance"] for r in rows):
         for ls in dict.fromkeys(r["local_search"] for r in rows):
             sel = [r for r in rows if r["instance"] == inst and r["local_search"] == ls]
