@@ -158,24 +158,26 @@ def paper() -> None:
               f"{t1[0]['iterations'] * t1[0]['ants']:,} tours, target "
               f"{t1[0]['target_gap_percent']:g} % above the optimum)\n")
         print("| algorithm | s/iteration per run | iterations to convergence | hit target | "
-              "iterations (tours) to target | s to target | final gap % [CI] | stuck |")
-        print("|---|---|---|---|---|---|---|---|")
+              "iterations (tours) to target | s to target | final gap % [CI] | stuck | "
+              "p vs EACO paper preset |")
+        print("|---|---|---|---|---|---|---|---|---|")
         for r in t1:
-            print(f"| {r['algorithm']} | {r['seconds_per_iteration_per_run']:.5f} | "
+            print(f"| {r['algorithm']} | {r['seconds_per_iteration_per_run']:.2e} | "
                   f"{r['iterations_to_convergence_mean']:.0f} | {r['success_rate']:.2f} | "
                   f"{num(r['iterations_to_target_mean'], '.0f')} "
                   f"({num(r.get('tours_to_target_mean'), ',.0f')}) | "
                   f"{num(r['seconds_to_target_mean'], '.3f')} | {r['final_gap_mean']:.2f} "
                   f"[{r['final_gap_ci_low']:.2f}, {r['final_gap_ci_high']:.2f}] | "
-                  f"{r['stuck_fraction']:.2f} |")
+                  f"{r['stuck_fraction']:.2f} | {p_fmt(r.get('p_vs_eaco_paper'))} |")
     t2 = load("paper/table2.json")
     if t2:
         run_note("paper/table2.json", CON_KEYS)
         print("\n### Table 2 (G1-G4, derivative-free unless said, "
               f"{t2[0]['budget']:,} evaluations, {t2[0]['seeds']} seeds)\n")
         print("| problem | algorithm | success | iterations (evaluations) to target | "
-              "s to target | mean best [CI] | feasible | paper: iterations, mean best |")
-        print("|---|---|---|---|---|---|---|---|")
+              "s to target | mean best [CI] | median best | feasible | p vs EACO (d.-f.) | "
+              "paper: iterations, mean best |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for r in t2:
             paper_col = (f"{r['paper_iterations']}, {r['paper_mean_best']}"
                          if r["algorithm"] in ("GA (LX-PM)", "SA", "EACO (derivative-free)")
@@ -185,8 +187,8 @@ def paper() -> None:
                   f"({num(r['evaluations_to_target_mean'], ',.0f')}) | "
                   f"{num(r['seconds_to_target_mean'], '.2f')} | "
                   f"{num(r.get('best_mean'), '.6g')} [{num(r.get('best_ci_low'), '.6g')}, "
-                  f"{num(r.get('best_ci_high'), '.6g')}] | {r['feasible_rate']:.2f} | "
-                  f"{paper_col} |")
+                  f"{num(r.get('best_ci_high'), '.6g')}] | {num(r.get('best_median'), '.6g')} | "
+                  f"{r['feasible_rate']:.2f} | {p_fmt(r.get('p_vs_eaco_df'))} | {paper_col} |")
     t3 = load("paper/table3.json")
     if t3:
         run_note("paper/table3.json", ("budget", "seeds"))
