@@ -349,10 +349,12 @@ def main() -> None:
         p.add_argument("--chunks", type=int, default=10, help="compiled chunks per run")
         p.add_argument("--quick", action="store_true", help="smoke run: 4 seeds, tiny budgets")
         p.add_argument("--out", default=str(RESULTS))
+        p.add_argument("--note", default="", help="stored in the JSON's meta")
     m = sub.add_parser("merge", help="merge result JSONs of one family into one table")
     m.add_argument("merge_family", choices=("tsp", "constrained"))
     m.add_argument("files", nargs="+")
     m.add_argument("--out", default=str(RESULTS))
+    m.add_argument("--note", default="", help="stored in the JSON's meta (e.g. a reduced budget)")
     args = ap.parse_args()
     if args.family == "merge":
         rows, metas = [], []

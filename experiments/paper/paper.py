@@ -430,7 +430,8 @@ def fig9(args: argparse.Namespace) -> list[dict[str, Any]]:
 def vars_meta(args: argparse.Namespace) -> dict[str, Any]:
     meta = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
             if k != "func"}
-    meta.update(device=str(jax.devices()[0]), jax=jax.__version__)
+    meta.update(device=str(jax.devices()[0]), jax=jax.__version__,
+                cpu_cores=len(__import__("os").sched_getaffinity(0)))
     return meta
 
 
