@@ -149,7 +149,7 @@ def cec() -> None:
 
 def paper() -> None:
     if any((RESULTS / f"paper/{n}.json").exists()
-           for n in ("table1_tsp", "table2", "table3", "fig1", "fig9")):
+           for n in ("table1_tsp", "table2", "table3", "fig1", "fig4", "fig9")):
         print("\n## The paper's tables (`experiments/paper/paper.py`)")
     t1 = load("paper/table1_tsp.json")
     if t1:
@@ -205,12 +205,16 @@ def paper() -> None:
                   f"{num(r['expected_iterations_to_target'], '.1f')} | "
                   f"{r['best_mean']:.5f} | {r['paper_iterations']}, "
                   f"{r['paper_optimal_solution']} |")
-    for name, title in (("fig1", "Fig. 1"), ("fig9", "Fig. 9")):
+    for name, title, keys in (
+            ("fig1", "Fig. 1", ("instance", "tours", "ants", "seeds")),
+            ("fig4", "Fig. 4A (path among 10 obstacles; crossover rate)",
+             ("path_world", "path_ants", "path_iterations", "seeds")),
+            ("fig9", "Fig. 9", ("instance", "tours", "ants", "seeds"))):
         rows = load(f"paper/{name}.json")
         if not rows:
             continue
         print(f"\n### {title}")
-        run_note(f"paper/{name}.json", ("instance", "tours", "ants", "seeds"))
+        run_note(f"paper/{name}.json", keys)
         print()
         for r in rows:
             keep = {k: v for k, v in r.items() if not isinstance(v, list)}

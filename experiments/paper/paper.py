@@ -22,6 +22,8 @@ JSON + CSV + PNG under ``experiments/results/paper/``. Our reading of each item:
 * **Fig. 1**: (A, B) population diversity (mean pairwise edge distance) under ERX and PMX,
   (C) alpha x beta on convergence (eil51, paper preset, no local search), (D) EACO vs GA
   convergence on G1.
+* **Fig. 4**: path length among 10 obstacles against the crossover rate (A); PathEACO has
+  no mutation operator, so (B) has no counterpart.
 * **Fig. 9**: sigma (the number of elitist ants, Eq. 74) on convergence and premature
   convergence (fraction of runs stuck above the target at the budget; expected iterations to
   target = mean iterations of successful runs x runs / successes).
@@ -427,6 +429,58 @@ def fig9(args: argparse.Namespace) -> list[dict[str, Any]]:
     return rows
 
 
+# --------------------------------------------------------------------------- Fig. 4
+def fig4(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Path length against the crossover rate (the paper's Fig. 4A) among 10 obstacles.
+
+    Our planner is 2-D (a visibility graph; the optimum is known from Dijkstra) where the
+    paper's environment has 3-D polygon obstacles, and PathEACO has no mutation operator, so
+    Fig. 4B (mutation rate) has no counterpart here.
+    """
+    from eaco_jax.strategies.path_eaco import PathEACO
+
+    problem = ea.problems.random_environment(10, seed=args.path_world)
+    opt = float(problem.optimum)
+    iters = args.path_iterations
+    seeds = list(range(args.seeds))
+    strategy = PathEACO(num_ants=args.path_ants)
+    rows, curves = [], {}
+    for pc in (0.0, 0.1, 0.3, 0.5, 0.7, 0.9, 1.0):
+        params = strategy.default_params(problem).replace(p_crossover=f32(pc))
+        r = run_cell(problem, strategy, params, seeds, iters, divisor_chunk(iters, 10))
+        gap = 100 * (r["history"] / opt - 1)
+        curves[pc] = gap
+        rows.append(dict(p_crossover=pc, optimum=opt,
+                         **{f"final_gap_{k}": v for k, v in st.summary(gap[:, -1]).items()
+                            if k in ("mean", "ci_low", "ci_high")},
+                         optimum_found=float(np.mean(gap[:, -1] <= 1e-4)),
+                         final_lengths=r["history"][:, -1].tolist()))
+        print(f"fig4 p_crossover {pc}: {rows[-1]['final_gap_mean']:.3f} %", flush=True)
+    ref = next(r for r in rows if r["p_crossover"] == 0.3)["final_lengths"]  # the default
+    for r in rows:
+        if r["p_crossover"] != 0.3:
+            r["p_vs_default"] = st.paired_test(r["final_lengths"], ref)
+    stem = save("fig4", rows, vars_meta(args), args.out)
+    fig, axes = plots.subplots(1, 2, figsize=(11, 4))
+    pcs = [r["p_crossover"] for r in rows]
+    axes[0].errorbar(pcs, [r["final_gap_mean"] for r in rows],
+                     yerr=[[r["final_gap_mean"] - r["final_gap_ci_low"] for r in rows],
+                           [r["final_gap_ci_high"] - r["final_gap_mean"] for r in rows]],
+                     marker="o", capsize=3)
+    axes[0].set_xlabel("crossover rate p_c")
+    axes[0].set_ylabel(f"path length above the optimum after {iters} iterations, %")
+    axes[0].set_title("(A) path length vs crossover rate (mean, 95% CI)")
+    x = np.arange(1, iters + 1)
+    for pc, g in curves.items():
+        axes[1].plot(x, g.mean(axis=0), label=f"p_c {pc:g}")
+    axes[1].set_yscale("symlog", linthresh=0.1)
+    axes[1].set_xlabel("iteration")
+    axes[1].set_title("best-so-far gap, mean of the seeds")
+    axes[1].legend(fontsize=7)
+    plots.save_figure(fig, stem.with_suffix(".png"))
+    return rows
+
+
 def vars_meta(args: argparse.Namespace) -> dict[str, Any]:
     meta = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
             if k != "func"}
@@ -437,7 +491,8 @@ def vars_meta(args: argparse.Namespace) -> dict[str, Any]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=("table1", "table2", "table3", "fig1", "fig9", "all"))
+    ap.add_argument("what", choices=("table1", "table2", "table3", "fig1", "fig4", "fig9",
+                                     "all"))
     ap.add_argument("--seeds", type=int, default=25)
     ap.add_argument("--instance", default="eil51")
     ap.add_argument("--ants", type=int, default=25)
@@ -445,17 +500,22 @@ def main() -> None:
     ap.add_argument("--target-gap", type=float, default=2.0, help="TSP target, % above opt")
     ap.add_argument("--problems", default="G1,G2,G3,G4")
     ap.add_argument("--budget", type=int, default=100_000, help="continuous evaluations")
+    ap.add_argument("--path-world", type=int, default=1, help="Fig. 4 obstacle layout seed")
+    ap.add_argument("--path-ants", type=int, default=32)
+    ap.add_argument("--path-iterations", type=int, default=60)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args()
     if args.quick:
         args.seeds, args.tours, args.budget, args.problems = 4, 500, 2_000, "G1"
+        args.path_iterations = 10
         args.out = args.out / "quick"
-    todo = ["table2", "table1", "table3", "fig1", "fig9"] if args.what == "all" else [args.what]
+    todo = (["table2", "table1", "table3", "fig1", "fig4", "fig9"] if args.what == "all"
+            else [args.what])
     for what in todo:
         t0 = time.perf_counter()
         {"table1": table1_tsp, "table2": table2, "table3": table3, "fig1": fig1,
-         "fig9": fig9}[what](args)
+         "fig4": fig4, "fig9": fig9}[what](args)
         print(f"{what}: {time.perf_counter() - t0:.0f} s", flush=True)
 
 
