@@ -2,6 +2,7 @@
 
     python experiments/ablation.py tsp            # eil51, kroA100; without and with 2-opt
     python experiments/ablation.py constrained    # g01, g09, g10, g13 derivative-free
+    python experiments/ablation.py gait           # NAO, 2 s horizon, native MuJoCo
     python experiments/ablation.py tsp --quick    # smoke run (4 seeds, tiny budgets)
 
 **TSP.** GraphEACO cells, each a parameter set (traced switches) or a static operator choice:
@@ -23,6 +24,10 @@ each operator off in turn, q0 = 0, Table 3's best setting (q0 = 0.8, rho = 0.3, 
 p_m = 0.5), and the other constraint orders (Deb, static penalty PEN = 0.3). Success = feasible
 with f - f* <= 1e-4 (CEC2006); success performance; paired tests on the error at the budget and
 on the evaluations to target (failures rank worst).
+
+**Gait.** ContinuousEACO on the NAO (native MuJoCo, nominal world, ``--horizon`` seconds,
+searched from the whole box), each operator off in turn, q0 = 0 and Table 3's best setting;
+the metric is each seed's best distance walked; paired Wilcoxon against the default, Holm.
 
 Writes ``experiments/results/ablation_<family>.{json,csv,png}``.
 """
@@ -273,6 +278,60 @@ def retest_constrained(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 # --------------------------------------------------------------------------- outputs
+# --------------------------------------------------------------------------- gait
+def gait_cells() -> list[dict[str, Any]]:
+    """ContinuousEACO's operators on the NAO gait (derivative-free: the gait has no gradient)."""
+    d = ContinuousEACO(refine_ants=0, repair_steps=0).default_params()
+    cells = [
+        ("default", None, {}),
+        ("-Laplace crossover", "default", dict(p_crossover=0.0)),
+        ("-power mutation", "default", dict(p_mutation=0.0)),
+        ("-chaos", "default", dict(chaos_rate=0.0)),
+        ("-chaotic restart", "default", dict(restart_patience=1e9)),
+        ("q0 = 0", "default", dict(q0=0.0)),
+        ("Table 3 best (q0 .8, rho .3, pc .6, pm .5)", "default",
+         dict(q0=0.8, rho=0.3, p_crossover=0.6, p_mutation=0.5)),
+    ]
+    return [dict(name=n, reference=r, params=d.replace(**kw)) for n, r, kw in cells]
+
+
+def run_gait(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Each cell: ``--seeds`` searches from the whole box on native MuJoCo, nominal world,
+    ``--horizon`` seconds; the metric is the best distance walked (the paper's fitness)."""
+    from eaco_jax.problems.gait import make_gait_problem
+
+    problem = make_gait_problem("nao", backend="native", horizon=args.horizon)
+    strategy = ContinuousEACO(num_ants=args.ants, archive_size=args.archive, refine_ants=0,
+                              repair_steps=0)
+    seeds = list(range(args.seeds))
+    rows = []
+    for c in gait_cells():
+        t0 = time.perf_counter()
+        r = run_cell(problem, strategy, c["params"], seeds, args.iterations,
+                     divisor_chunk(args.iterations, args.chunks))
+        fit = -r["history"]  # best distance so far per seed and iteration
+        rows.append(dict(family="gait", problem=f"nao {args.horizon:g} s", cell=c["name"],
+                         reference=c["reference"], ants=args.ants,
+                         iterations=args.iterations, seeds=len(seeds),
+                         **{f"distance_{k}": v for k, v in st.summary(fit[:, -1]).items()},
+                         distance_at_half=float(np.mean(fit[:, args.iterations // 2 - 1])),
+                         seconds_per_iteration=r["seconds_per_iteration"],
+                         final_distances=fit[:, -1].tolist()))
+        print(f"gait {c['name']}: {rows[-1]['distance_mean']:.3f} m "
+              f"({time.perf_counter() - t0:.0f} s)", flush=True)
+    ref = next(r for r in rows if r["reference"] is None)["final_distances"]
+    tested = [r for r in rows if r["reference"] is not None]
+    for r in tested:
+        r["p"] = st.paired_test(r["final_distances"], ref)
+        r["delta_vs_ref"] = r["distance_mean"] - rows[0]["distance_mean"]
+        r["better_worse_seeds"] = [int(np.sum(np.array(r["final_distances"]) > ref)),
+                                   int(np.sum(np.array(r["final_distances"]) < ref))]
+    for r, ph in zip(tested, st.holm([r["p"] for r in tested]), strict=True):
+        r["p_holm"] = ph
+    write(args.out, "gait", rows, args)
+    return rows
+
+
 def write(stem_dir: str, family: str, rows: list[dict[str, Any]], args: argparse.Namespace):
     from eaco_jax.outputs import to_jsonable
 
@@ -284,7 +343,8 @@ def write(stem_dir: str, family: str, rows: list[dict[str, Any]], args: argparse
                 cpu_cores=len(__import__("os").sched_getaffinity(0)))
     stem.with_suffix(".json").write_text(
         json.dumps(to_jsonable({"meta": meta, "rows": rows}), indent=1) + "\n")
-    lists = {"final_lengths", "wall_lengths", "evaluations_to_target", "final_errors"}
+    lists = {"final_lengths", "wall_lengths", "evaluations_to_target", "final_errors",
+             "final_distances", "better_worse_seeds"}
     keys = [k for k in rows[0] if k not in lists]
     for r in rows:
         keys += [k for k in r if k not in keys and k not in lists]
@@ -308,7 +368,14 @@ def plot(path: Path, family: str, rows: list[dict[str, Any]]) -> None:
     fig, axes = plots.subplots(1, len(panels), figsize=(5.2 * len(panels), 7.5), squeeze=False)
     for ax, (a, b) in zip(axes[0], panels, strict=True):
         sel = [r for r in rows if r[key[0]] == a and (family != "tsp" or r[key[1]] == b)]
-        if family == "tsp":
+        if family == "gait":
+            mean = [r["distance_mean"] for r in sel]
+            lo = [r["distance_mean"] - r["distance_ci_low"] for r in sel]
+            hi = [r["distance_ci_high"] - r["distance_mean"] for r in sel]
+            pv = [r.get("p_holm") for r in sel]
+            ax.set_xlabel("best distance walked, m (mean, 95% CI)")
+            ax.set_title(a)
+        elif family == "tsp":
             mean = [r["gap_mean"] for r in sel]
             lo = [r["gap_mean"] - r["gap_ci_low"] for r in sel]
             hi = [r["gap_ci_high"] - r["gap_mean"] for r in sel]
@@ -344,7 +411,12 @@ def main() -> None:
     c = sub.add_parser("constrained")
     c.add_argument("--problems", default="g01,g09,g10,g13")
     c.add_argument("--budget", type=int, default=100_000)
-    for p in (t, c):
+    g = sub.add_parser("gait")
+    g.add_argument("--horizon", type=float, default=2.0)
+    g.add_argument("--ants", type=int, default=16)
+    g.add_argument("--archive", type=int, default=24)
+    g.add_argument("--iterations", type=int, default=24)
+    for p in (t, c, g):
         p.add_argument("--seeds", type=int, default=25)
         p.add_argument("--chunks", type=int, default=10, help="compiled chunks per run")
         p.add_argument("--quick", action="store_true", help="smoke run: 4 seeds, tiny budgets")
@@ -373,9 +445,12 @@ def main() -> None:
         if args.family == "tsp":
             args.instances, args.tours_none, args.tours_2opt = "eil51", 500, 100
             args.timing_iterations = 2
+        elif args.family == "gait":
+            args.iterations, args.horizon = 4, 0.5
         else:
             args.problems, args.budget = "g01", 2_000
-    rows = run_tsp(args) if args.family == "tsp" else run_constrained(args)
+    run = {"tsp": run_tsp, "constrained": run_constrained, "gait": run_gait}[args.family]
+    rows = run(args)
     print(f"{len(rows)} rows written under {args.out}")
 
 

@@ -1,4 +1,4 @@
-"""Markdown tables of the evidence results (ablation, CEC2006, paper tables) from their JSON.
+"""Markdown tables of the evidence results (ablations, CEC2006, paper tables) from their JSON.
 
     python experiments/evidence_report.py --out docs/evidence.md
     python experiments/evidence_report.py --results /tmp/quick   # tables of another folder
@@ -130,6 +130,26 @@ def constrained() -> None:
                   f"{p_fmt(r.get('p_evaluations_holm'))} |")
 
 
+def gait() -> None:
+    rows = load("ablation_gait.json")
+    if not rows:
+        return
+    print("\n## Gait ablation (`experiments/ablation.py gait`)")
+    run_note("ablation_gait.json", ("horizon", "ants", "archive", "iterations", "seeds"))
+    r0 = rows[0]
+    print(f"\n### {r0['problem']}, native MuJoCo, nominal world, {r0['ants']} ants x "
+          f"{r0['iterations']} iterations, {r0['seeds']} seeds\n")
+    print("| cell | best distance m, mean [95% CI] | at half the budget | Δ vs default | "
+          "better/worse seeds | p (Wilcoxon) | p Holm |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        bw = r.get("better_worse_seeds")
+        print(f"| {r['cell']} | {r['distance_mean']:.3f} [{r['distance_ci_low']:.3f}, "
+              f"{r['distance_ci_high']:.3f}] | {r['distance_at_half']:.3f} | "
+              f"{num(r.get('delta_vs_ref'), '+.3f')} | {f'{bw[0]}/{bw[1]}' if bw else '-'} | "
+              f"{p_fmt(r.get('p'))} | {p_fmt(r.get('p_holm'))} |")
+
+
 def cec() -> None:
     rows = load("cec2006.json")
     if not rows:
@@ -239,6 +259,7 @@ def main() -> None:
                   "`meta`)._")
             tsp()
             constrained()
+            gait()
             cec()
             paper()
         finally:
