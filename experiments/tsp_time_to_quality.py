@@ -6,7 +6,8 @@ driver's ``max_seconds``; see ``tsp_bench_common.run_timed``). The best length a
 chunk gives a curve; the table shows the mean gap over seeds at ``--checkpoints`` seconds,
 after compilation and from the call (compile included). With ``--acotsp PATH`` (a binary
 built outside this repository) ACOTSP runs each seed for the same time, MMAS with
-``--acotsp-ants`` ants and each local search of ``--acotsp-ls`` (2: 2-opt, 3: 3-opt), one
+``--acotsp-ants`` ants and each local search of ``--acotsp-ls`` (ACOTSP 1.03's codes: 1 = 2-opt,
+2 = 2.5-opt, 3 = 3-opt), one
 process at a time: pin with ``taskset -c N`` and compare on the same core. Writes JSON
 (device, versions, every trace) and a PNG of the curves.
 
@@ -129,7 +130,8 @@ def main() -> None:
     ap.add_argument("--ls-best-k", type=int)
     ap.add_argument("--chunk", type=int, default=5)
     ap.add_argument("--acotsp", type=Path, help="ACOTSP binary (built outside the repository)")
-    ap.add_argument("--acotsp-ls", type=int, nargs="+", default=[2, 3])
+    ap.add_argument("--acotsp-ls", type=int, nargs="+", default=[1, 3],
+                    help="ACOTSP local searches: 1 = 2-opt, 2 = 2.5-opt, 3 = 3-opt")
     ap.add_argument("--acotsp-ants", type=int, default=25)
     ap.add_argument("--data-dir", type=Path, action="append")
     ap.add_argument("--cache-dir", type=Path, default=Path("out/jax_cache"))
