@@ -53,6 +53,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from eaco_jax.robots import load_robot
+from timing import timed
 
 import eaco_jax as ea
 from eaco_jax.gait.rollout_mjx import mjx_model
@@ -61,19 +62,6 @@ from eaco_jax.problems.gait import make_gait_problem
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
 RESULTS = Path(__file__).resolve().parent / "results"
-
-
-def timed(fn, repeats: int) -> tuple[float, float]:
-    """(first-call seconds, median seconds of ``repeats`` further calls) of ``fn()``."""
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn())
-    first = time.perf_counter() - t0
-    walls = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn())
-        walls.append(time.perf_counter() - t0)
-    return first, statistics.median(walls)
 
 
 def colony_rate(robot: str, backend: str, batch: int, control_steps: int, iterations: int,

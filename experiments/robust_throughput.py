@@ -29,8 +29,6 @@ import argparse
 import json
 import os
 import platform
-import statistics
-import time
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +37,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
+from timing import timed
 
 from eaco_jax.gait.rollout_mjx import mjx_model
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
@@ -47,19 +46,6 @@ from eaco_jax.gait.worlds import RobustConfig, world_key
 from eaco_jax.problems.gait import make_gait_problem
 
 RESULTS = Path(__file__).resolve().parent / "results"
-
-
-def timed(fn, repeats: int) -> tuple[float, float]:
-    """(first-call seconds, median seconds of ``repeats`` further calls) of ``fn()``."""
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn())
-    first = time.perf_counter() - t0
-    walls = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn())
-        walls.append(time.perf_counter() - t0)
-    return first, statistics.median(walls)
 
 
 def robust_rate(backend: str, ants: int, r: int, horizon: float, repeats: int,

@@ -29,7 +29,6 @@ import argparse
 import copy
 import json
 import platform
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -50,24 +49,13 @@ from eaco_jax.problems.gait import make_gait_problem
 from eaco_jax.strategies import ContinuousEACO
 
 mjx = quiet_mjx()
+from timing import timed  # noqa: E402 - experiments/ is the script's folder
+
 RESULTS = Path(__file__).resolve().parent / "results" / "gpu"
 
 
 def log(*a: Any) -> None:
     print(*a, flush=True)
-
-
-def timed(fn, repeats: int) -> tuple[float, float]:
-    """(first-call seconds, median of ``repeats`` further calls) of ``fn()``."""
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn())
-    first = time.perf_counter() - t0
-    walls = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn())
-        walls.append(time.perf_counter() - t0)
-    return first, statistics.median(walls)
 
 
 def random_gaits(problem, n: int, seed: int = 0) -> jax.Array:
