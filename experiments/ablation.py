@@ -368,20 +368,18 @@ def plot(path: Path, family: str, rows: list[dict[str, Any]]) -> None:
     fig, axes = plots.subplots(1, len(panels), figsize=(5.2 * len(panels), 7.5), squeeze=False)
     for ax, (a, b) in zip(axes[0], panels, strict=True):
         sel = [r for r in rows if r[key[0]] == a and (family != "tsp" or r[key[1]] == b)]
-        if family == "gait":
-            mean = [r["distance_mean"] for r in sel]
-            lo = [r["distance_mean"] - r["distance_ci_low"] for r in sel]
-            hi = [r["distance_ci_high"] - r["distance_mean"] for r in sel]
+        if family in ("tsp", "gait"):  # a mean with its 95% CI per cell
+            m = "gap" if family == "tsp" else "distance"
+            mean = [r[f"{m}_mean"] for r in sel]
+            lo = [r[f"{m}_mean"] - r[f"{m}_ci_low"] for r in sel]
+            hi = [r[f"{m}_ci_high"] - r[f"{m}_mean"] for r in sel]
             pv = [r.get("p_holm") for r in sel]
-            ax.set_xlabel("best distance walked, m (mean, 95% CI)")
-            ax.set_title(a)
-        elif family == "tsp":
-            mean = [r["gap_mean"] for r in sel]
-            lo = [r["gap_mean"] - r["gap_ci_low"] for r in sel]
-            hi = [r["gap_ci_high"] - r["gap_mean"] for r in sel]
-            pv = [r.get("p_holm") for r in sel]
-            ax.set_xlabel("gap to optimum at the tour budget, % (mean, 95% CI)")
-            ax.set_title(f"{a}, {'2-opt' if b != 'none' else 'no local search'}")
+            if family == "tsp":
+                ax.set_xlabel("gap to optimum at the tour budget, % (mean, 95% CI)")
+                ax.set_title(f"{a}, {'2-opt' if b != 'none' else 'no local search'}")
+            else:
+                ax.set_xlabel("best distance walked, m (mean, 95% CI)")
+                ax.set_title(a)
         else:
             mean = [r["success_rate"] for r in sel]
             lo = hi = [0.0] * len(sel)
