@@ -1,13 +1,19 @@
 """Soak test (not CI): a checkpointed run killed with SIGKILL again and again, then resumed.
 
-    python experiments/soak.py --minutes 60            # the one-hour soak
+    python experiments/soak.py --minutes 60 --iterations 1400000 --every 2000 \
+        --parallel-reference                           # the one-hour soak (two cores)
     python experiments/soak.py --minutes 8 --iterations 20000   # a short one
 
 A child process runs ``minimize`` with checkpoints every ``--every`` iterations (a few seconds
 on a CPU) and ``keep`` = 3; the parent kills it with SIGKILL at random moments, samples its
 resident memory (``/proc/<pid>/status``) and the checkpoint folder's size, and starts it again
 (it resumes from the newest intact step) until the run finishes. The final result is compared
-with an unbroken run of the same settings. Prints one JSON record (and writes ``--out``).
+with an unbroken run of the same settings (before the soak, or beside it on another core
+with ``--parallel-reference``; each process is pinned to one core). Memory is judged per
+process: a process started at iteration 1,000,000 must peak no higher than one started at 0
+(the fit of peak RSS against the iteration it resumed at is reported in kB per 100,000
+iterations); disk is split into the ``keep`` steps and the append-only history log. Prints
+one JSON record (and writes ``--out``).
 """
 
 from __future__ import annotations
@@ -30,6 +36,9 @@ def child(args: argparse.Namespace) -> None:
 
     import eaco_jax as ea
     from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    if args.cpu >= 0:
+        os.sched_setaffinity(0, {args.cpu})
 
     jax.config.update("jax_compilation_cache_dir", args.cache)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
@@ -85,11 +94,12 @@ def _steady(samples: list[dict], cycles: list[dict]) -> list[float] | None:
     return [last[0], last[-1], max(last)] if last else None
 
 
-def _spawn(args: argparse.Namespace, directory: str, result: Path) -> subprocess.Popen:
+def _spawn(args: argparse.Namespace, directory: str, result: Path, cpu: int = -1
+           ) -> subprocess.Popen:
     cmd = [sys.executable, __file__, "--child", "--dir", directory, "--result", str(result),
            "--instance", args.instance, "--ants", str(args.ants), "--iterations",
            str(args.iterations), "--every", str(args.every), "--keep", str(args.keep),
-           "--cache", args.cache]
+           "--cache", args.cache, "--cpu", str(cpu)]
     log = open(Path(args.work) / "child.log", "a")  # noqa: SIM115 - a file, never a full pipe
     return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=log, text=True)
 
@@ -103,16 +113,23 @@ def parent(args: argparse.Namespace) -> dict:
     # the unbroken reference (also warms the persistent compilation cache)
     ref_file = work / "unbroken.json"
     t0 = time.time()
-    ref = _spawn(args, "", ref_file)
-    ref.wait()
-    if ref.returncode != 0:
-        raise SystemExit(f"unbroken run failed: see {work / 'child.log'}")
-    unbroken_seconds = time.time() - t0
+    cpus = sorted(os.sched_getaffinity(0))
+    ref = _spawn(args, "", ref_file, cpus[-1] if args.parallel_reference else -1)
+    unbroken_seconds = None
+    if not args.parallel_reference:
+        ref.wait()
+        if ref.returncode != 0:
+            raise SystemExit(f"unbroken run failed: see {work / 'child.log'}")
+        unbroken_seconds = time.time() - t0
+    soak_cpu = cpus[0] if args.parallel_reference else -1
+    t_soak = time.time()
     kills, samples, cycles = 0, [], []
     result = work / "soak.json"
     deadline = time.time() + 60 * args.minutes
     while True:
-        proc = _spawn(args, str(ck), result)
+        resumed_at = max((int(p.name) for p in ck.iterdir() if p.name.isdigit()),
+                         default=0) if ck.exists() else 0
+        proc = _spawn(args, str(ck), result, soak_cpu)
         wait = rng.uniform(args.min_kill, args.max_kill)
         born = time.time()
         if born + wait > deadline:
@@ -136,21 +153,47 @@ def parent(args: argparse.Namespace) -> dict:
             raise SystemExit(f"child failed ({proc.returncode}): see {work / 'child.log'}")
         steps = sorted(int(p.name) for p in ck.iterdir() if p.name.isdigit()) if ck.exists() \
             else []
-        cycles.append({"alive_s": round(time.time() - born, 1), "peak_rss_mb": round(peak, 1),
+        cycles.append({"resumed_at": resumed_at,
+                       "alive_s": round(time.time() - born, 1), "peak_rss_mb": round(peak, 1),
                        "disk_mb": round(_disk_mb(ck), 3) if ck.exists() else 0.0,
+                       "history_mb": round(_disk_mb(ck / "history"), 3)
+                       if (ck / "history").exists() else 0.0,
                        "steps": steps, "killed": not finished})
         if result.exists():
             break
+    soak_seconds = time.time() - t_soak
+    if args.parallel_reference:
+        ref.wait()
+        if ref.returncode != 0:
+            raise SystemExit(f"unbroken run failed: see {work / 'child.log'}")
+        unbroken_seconds = time.time() - t0
     same = json.loads(result.read_text()) == json.loads(ref_file.read_text())
     peaks = [c["peak_rss_mb"] for c in cycles if c["peak_rss_mb"]]
+    # killed processes that resumed (the first one compiles into an empty cache)
+    killed = [c for c in cycles if c["killed"] and c["peak_rss_mb"] and c["resumed_at"] > 0]
+    slope = None
+    if len(killed) >= 3:  # peak RSS of a killed process against the iteration it started at
+        import numpy as np
+
+        x = np.array([c["resumed_at"] for c in killed], float)
+        y = np.array([c["peak_rss_mb"] for c in killed], float)
+        slope = float(np.polyfit(x / 1e5, y * 1024, 1)[0])
+    history_dir = ck / "history"
     leftovers = [p.name for p in ck.iterdir() if "tmp" in p.name] if ck.exists() else []
     return {
         "instance": args.instance, "iterations": args.iterations, "every": args.every,
         "keep": args.keep, "minutes": args.minutes, "kills": kills, "cycles": len(cycles),
+        "parallel_reference": bool(args.parallel_reference),
         "unbroken_seconds": round(unbroken_seconds, 1),
-        "soak_seconds": round(time.time() - t_start - unbroken_seconds, 1),
+        "soak_seconds": round(soak_seconds, 1),
         "identical_to_unbroken": same,
         "peak_rss_mb_first_last_max": [peaks[0], peaks[-1], max(peaks)] if peaks else None,
+        "killed_peak_rss_mb_min_max": [min(c["peak_rss_mb"] for c in killed),
+                                       max(c["peak_rss_mb"] for c in killed)] if killed else None,
+        "peak_rss_kb_per_100k_iterations": None if slope is None else round(slope, 1),
+        "final_history_log_mb": round(_disk_mb(history_dir), 3) if history_dir.exists() else 0,
+        "final_steps_mb": round(_disk_mb(ck) - (_disk_mb(history_dir)
+                                                if history_dir.exists() else 0), 3),
         "last_cycle_rss_mb_after_warmup": _steady(samples, cycles),
         "max_steps_on_disk": max(len(c["steps"]) for c in cycles),
         "max_disk_mb": max(c["disk_mb"] for c in cycles),
@@ -175,6 +218,9 @@ def main() -> None:
     ap.add_argument("--work", default="out/soak")
     ap.add_argument("--out", default=None, help="write the JSON record here")
     ap.add_argument("--cache", default=None, help="persistent compilation cache folder")
+    ap.add_argument("--parallel-reference", action="store_true",
+                    help="run the unbroken reference beside the soak (pinned to another core)")
+    ap.add_argument("--cpu", type=int, default=-1, help=argparse.SUPPRESS)
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--dir", default="", help=argparse.SUPPRESS)
     ap.add_argument("--result", default="", help=argparse.SUPPRESS)

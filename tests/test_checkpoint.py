@@ -340,13 +340,72 @@ def test_real_strategies_resume_bit_identical(tmp_path, which):
 
 
 def test_checkpoint_of_the_old_state_layout_refused(tmp_path, monkeypatch):
-    """Checkpoints written before the state lost its problem data (format 1) get one line."""
+    """Checkpoints of an older layout (format 1: problem data in the state; 2: history in
+    every step) get one line."""
     from eaco_jax.driver import checkpoint
 
-    monkeypatch.setattr(checkpoint, "FORMAT", 1)
+    now = checkpoint.FORMAT
+    monkeypatch.setattr(checkpoint, "FORMAT", now - 1)
     _run(tmp_path, iterations=10)
-    monkeypatch.setattr(checkpoint, "FORMAT", 2)
+    monkeypatch.setattr(checkpoint, "FORMAT", now)
     before = _fingerprint(tmp_path)
-    with pytest.raises(CheckpointError, match="has format 1, this eaco_jax reads format 2") as e:
+    with pytest.raises(CheckpointError,
+                       match=f"has format {now - 1}, this eaco_jax reads format {now}") as e:
         _run(tmp_path, iterations=10)
     assert "\n" not in str(e.value) and _fingerprint(tmp_path) == before
+
+
+def test_history_is_one_append_only_log_not_a_copy_per_step(tmp_path):
+    """Each save appends the iterations since the last one to history/ (one segment per
+    save); the steps hold the state only, so a save costs the same however long the run."""
+    from eaco_jax.driver.history import HistoryLog
+
+    res = _run(tmp_path, iterations=30, checkpoint_every=10, keep=2)
+    segs = HistoryLog(tmp_path / "history", 0).segments()
+    assert [(s, e) for s, e, _ in segs] == [(0, 10), (10, 20), (20, 30)]
+    assert _steps(tmp_path) == [20, 30]  # keep=2 drops steps, never history segments
+    items = {p.name for p in (tmp_path / "30").iterdir() if p.is_dir()}
+    assert items == {"state", "meta"}  # no history item in the step
+    logged = HistoryLog(tmp_path / "history", 0).read(30, read_meta(tmp_path)["history_chain"])
+    for k, v in res.history.items():
+        np.testing.assert_array_equal(logged[k], v, err_msg=k)
+
+
+@pytest.mark.parametrize("damage", ["flip", "missing"])
+def test_corrupt_history_segment_moved_aside_with_its_step(tmp_path, damage):
+    """A flipped byte in (or the loss of) the newest history segment: the step that needs it
+    and the segment go to corrupt/ with a warning; the run resumes from the step before and
+    ends bit-identical to an unbroken run."""
+    unbroken = _run(tmp_path / "ref", checkpoint_every=10, keep=5)
+    ck = tmp_path / "ck"
+    _run(ck, iterations=30, checkpoint_every=10, keep=5)
+    shutil.rmtree(ck / "30")
+    seg = ck / "history" / f"{10:012d}-{20:012d}.npz"
+    if damage == "missing":
+        seg.unlink()
+    else:
+        data = bytearray(seg.read_bytes())
+        data[len(data) // 2] ^= 0x01
+        seg.write_bytes(bytes(data))
+    with pytest.warns(UserWarning, match="step 20 .* corrupt .*history"):
+        resumed = _run(ck, checkpoint_every=10, keep=5)
+    _same(unbroken, resumed)
+    moved = sorted(p.name for p in (ck / "corrupt").iterdir())
+    assert moved[0].startswith("20-")
+    if damage == "flip":
+        assert len(moved) == 2 and moved[1].startswith("history-000000000010-000000000020")
+    assert _steps(ck) == [10, 20, 30]
+
+
+def test_segments_past_the_restored_step_are_rewritten(tmp_path):
+    """A save killed after its history segment but before its step: the segment is past the
+    newest step, dropped on resume, and written again (the result equals an unbroken run)."""
+    unbroken = _run(tmp_path / "ref", checkpoint_every=10, keep=5)
+    ck = tmp_path / "ck"
+    _run(ck, iterations=30, checkpoint_every=10, keep=5)
+    shutil.rmtree(ck / "30")  # the step never landed; its segment [20, 30) did
+    (ck / "history" / ".tmp-1-30-40.npz").write_bytes(b"half a save")
+    resumed = _run(ck, checkpoint_every=10, keep=5)
+    _same(unbroken, resumed)
+    assert not list((ck / "history").glob(".tmp-*"))
+    assert not (ck / "corrupt").exists()

@@ -4,12 +4,15 @@ A checkpoint holds everything a run needs to continue as if it had never stopped
 
 * ``state``: the colony pytree (PRNG key included, stored as raw key data and re-wrapped with
   the template's key implementation on restore), hence the iteration counter;
-* ``history``: the per-iteration statistics recorded so far;
+* the per-iteration statistics: not in the step but in the folder's append-only
+  :class:`~eaco_jax.driver.history.HistoryLog` (``history/``), one segment per save; the step
+  stores the digest chain over the segments of its prefix (so a save costs the same at
+  iteration 100 and 1,000,000, and the folder holds one copy of the history, not ``keep``);
 * ``meta`` (JSON): the run's identity - checkpoint format, package version, problem name and a
   content hash of its array leaves, strategy class and static fields, hyper-parameter hash,
   seeds, iteration and evaluation budgets - plus ``done`` (iterations completed), ``finished``,
   the ``chunk`` length the run was compiled with (reused on resume, so how often a run saves is
-  not part of its identity), a ``digest`` (sha256) of the saved state and history, and the
+  not part of its identity), a ``digest`` (sha256) of the saved state and history chain, and the
   caller's ``run_info`` (for ``eaco resume``: the command name and its arguments).
 
 Checkpoints are written between compiled chunks only (see :func:`eaco_jax.driver.minimize.run`),
@@ -21,7 +24,9 @@ Atomicity and integrity: orbax writes each step into ``<step>.orbax-checkpoint-t
 renames it when it is complete, so a process killed mid-write leaves at most a temporary folder
 that is never listed as a step. Restore takes the newest step whose files read back and match
 their digest; a step that does not is moved aside into ``<dir>/corrupt/`` (never deleted) with
-a warning, and the next older one is tried. A lock file (``<dir>/.lock``, ``flock``) keeps a
+a warning, and the next older one is tried (a corrupt history segment is moved aside with the
+steps that need it). History segments past the restored step (iterations the resumed run
+will compute again) are removed. A lock file (``<dir>/.lock``, ``flock``) keeps a
 second process from writing the same folder. Mismatched runs and incompatible versions raise
 :class:`CheckpointError` (one line) before anything in the folder is written or moved.
 """
@@ -45,12 +50,13 @@ import jax
 import numpy as np
 
 from eaco_jax._version import __version__
-from eaco_jax.driver.history import merge_history
+from eaco_jax.driver.history import HistoryCorrupt, HistoryLog, chain, merge_history
 from eaco_jax.errors import CheckpointError, ConfigError
 
 #: bumped whenever the on-disk layout changes; other formats are refused on restore.
 #: 2: problem data and telemetry left the colony state (eaco_jax 0.2).
-FORMAT = 2
+#: 3: the history moved out of the steps into an append-only log (eaco_jax 0.2).
+FORMAT = 3
 
 
 
@@ -196,11 +202,11 @@ def strong_types(tree: Any) -> Any:
 
 @dataclasses.dataclass
 class Restored:
-    """A checkpoint read back: state, iterations done, history so far, stored metadata."""
+    """A checkpoint read back: state, iterations done, stored metadata (the history stays
+    in the log: :meth:`RunCheckpointer.history`)."""
 
     state: Any
     done: int
-    history: dict[str, np.ndarray]
     finished: bool
     meta: dict[str, Any]
 
@@ -273,7 +279,12 @@ def _quiet_logs() -> Iterator[None]:
 
 
 class _Corrupt(Exception):
-    """A step whose files do not read back, or do not match their digest."""
+    """A step whose files do not read back, or do not match their digest (``path``: a
+    corrupt history segment to move aside with it)."""
+
+    def __init__(self, message: str, path: Path | None = None) -> None:
+        super().__init__(message)
+        self.path = path
 
 
 def _read_step_meta(directory: Path, step: int) -> dict[str, Any]:
@@ -317,11 +328,11 @@ def read_meta(directory: str | Path) -> dict[str, Any]:
         "with a new --checkpoint-dir")
 
 
-def state_digest(state_on_disk: Any, history: dict[str, Any]) -> str:
-    """sha256 over the saved state (key data as stored) and history: saved in the metadata,
-    compared on restore, so a changed byte is caught."""
+def state_digest(state_on_disk: Any, history_chain: str) -> str:
+    """sha256 over the saved state (key data as stored) and the history's digest chain: saved
+    in the metadata, compared on restore, so a changed byte is caught."""
     return tree_hash({"state": state_on_disk,
-                      "history": {k: np.asarray(v) for k, v in history.items()}})
+                      "history_chain": np.frombuffer(history_chain.encode(), np.uint8)})
 
 
 class _Lock:
@@ -414,6 +425,8 @@ class RunCheckpointer:
         self._last_time = time.monotonic()
         self._mgr = None
         self._lock = _Lock(self.directory)
+        self.log = HistoryLog(self.directory / "history", self.axis)
+        self._chain = ""  # digest chain of the logged history, [0, _last_done)
 
     def _writer(self):
         if self._mgr is None:
@@ -452,33 +465,30 @@ class RunCheckpointer:
         where = self.directory / str(step)
         try:
             out = _manager(self.directory, None, read_only=True).restore(
-                step,
-                args=ocp.args.Composite(
-                    state=ocp.args.StandardRestore(_to_disk(template)),
-                    history=ocp.args.StandardRestore(),
-                ),
-            )
+                step, args=ocp.args.Composite(state=ocp.args.StandardRestore(_to_disk(template))))
         except Exception as err:  # noqa: BLE001 - truncated / garbled array files
             raise _Corrupt(f"its arrays do not read back ({type(err).__name__})") from None
-        history = {k: np.asarray(v) for k, v in dict(out["history"] or {}).items()}
-        digest = meta.get("digest")
-        if digest is not None and state_digest(out["state"], history) != digest:
+        history_chain = str(meta.get("history_chain", ""))
+        if state_digest(out["state"], history_chain) != meta.get("digest"):
             raise _Corrupt("its arrays do not match the digest saved with them")
         try:
             state = _from_disk(out["state"], template, where)
         except CheckpointError as err:
             raise _Corrupt(str(err)) from None
         done = int(meta["done"])
-        lengths = {v.shape[self.axis] for v in history.values()} if history else {0}
-        if lengths != {done}:
-            raise _Corrupt(f"its history length is not {done}")
-        return Restored(state, done, history, bool(meta.get("finished", False)), meta)
+        try:
+            self.log.read(done, history_chain, visit=lambda _arrays: None)  # verify only
+        except HistoryCorrupt as err:
+            raise _Corrupt(str(err), err.path) from None
+        return Restored(state, done, bool(meta.get("finished", False)), meta)
 
-    def restore(self, template: Any) -> Restored | None:
+    def restore(self, template: Any, on_segment: Any = None) -> Restored | None:
         """The newest intact checkpoint of this same run, or None if the folder has none.
 
-        Takes the folder's lock first. A step that does not read back or fails its digest is
-        moved into ``corrupt/`` with a warning, and the next older step is tried.
+        Takes the folder's lock first. A step that does not read back or fails its digest (or
+        whose history segments do) is moved into ``corrupt/`` with a warning, and the next
+        older step is tried. ``on_segment(arrays)`` sees each history segment of the restored
+        prefix once, in order (the history itself is not kept in memory).
         """
         self.open()
         steps = all_steps(self.directory)
@@ -489,6 +499,8 @@ class RunCheckpointer:
             try:
                 restored = self._read(step, template)
             except _Corrupt as err:
+                if err.path is not None and err.path.exists():
+                    self.log.move_aside(err.path, self.directory / "corrupt")
                 self._move_aside(step, str(err))
                 continue
             check_identity(restored.meta, self.identity, self.directory)
@@ -497,10 +509,25 @@ class RunCheckpointer:
                 self.chunk = int(stored_chunk)
             self._last_done = restored.done
             self._last_time = time.monotonic()
+            self._chain = str(restored.meta.get("history_chain", ""))
+            self.log.truncate(restored.done)
+            if on_segment is not None:  # verified above: a second pass hands it over
+                self.log.read(restored.done, self._chain, visit=on_segment)
             return restored
         raise CheckpointError(
             f"every checkpoint in {self.directory} was corrupt (moved to "
             f"{self.directory / 'corrupt'}); run again to start from scratch")
+
+    @property
+    def logged(self) -> int:
+        """Iterations in the history log (those up to the last save or restore)."""
+        return self._last_done
+
+    def history(self, done: int) -> dict[str, np.ndarray]:
+        """The logged history of iterations ``[0, done)`` (``done`` = :attr:`logged`)."""
+        if done == 0:
+            return {}
+        return self.log.read(done, self._chain) or {}
 
     def due(self, done: int) -> bool:
         by_iters = self.every is not None and done - self._last_done >= self.every
@@ -510,47 +537,53 @@ class RunCheckpointer:
         return by_iters or by_time
 
     def after_chunk(
-        self, state: Any, done: int, history: list[dict[str, Any]], finished: bool,
+        self, state: Any, done: int, pending: list[dict[str, Any]], finished: bool,
         force: bool = False,
     ) -> bool:
-        """Save if a checkpoint is due (always at the end of the run, or with ``force``).
-        Returns whether it did."""
+        """Save if a checkpoint is due (always at the end of the run, or with ``force``);
+        ``pending`` is the history since the last save. Returns whether it saved (the caller
+        then drops ``pending``: it is in the log)."""
         if not (finished or force or self.due(done)):
             return False
         if done == 0 or (force and done == self._last_done):
             return False  # nothing run since the start or the last save
-        self.save(state, done, merge_history(history, self.axis), finished)
-        return True
+        return self.save(state, done, merge_history(pending, self.axis), finished)
 
-    def save(self, state: Any, done: int, history: dict[str, Any], finished: bool) -> None:
+    def save(self, state: Any, done: int, pending: dict[str, Any], finished: bool) -> bool:
+        """Append ``pending`` (iterations since the last save) to the history log, then write
+        the step. Returns False if the step exists already (nothing written)."""
         import orbax.checkpoint as ocp
 
         self.open()
+        mgr = self._writer()
+        if done in mgr.all_steps():  # e.g. the final save of a run resumed at its last step
+            return False
+        history_chain = self._chain
+        if done > self._last_done:
+            history_chain = chain(history_chain, self.log.append(self._last_done, done, pending))
         on_disk = _to_disk(state)
-        history = {k: np.asarray(v) for k, v in history.items()}
         meta = dict(self.identity)
         meta.update(
             done=int(done),
             finished=bool(finished),
             chunk=None if self.chunk is None else int(self.chunk),
-            digest=state_digest(on_disk, history),
+            history_chain=history_chain,
+            digest=state_digest(on_disk, history_chain),
             run_info=self.run_info,
             saved_at=time.time(),
             writer=f"eaco_jax {__version__}",
         )
         meta["meta_digest"] = _meta_digest(meta)
-        mgr = self._writer()
-        if done in mgr.all_steps():  # e.g. the final save of a run resumed at its last step
-            return
         mgr.save(
             done,
             args=ocp.args.Composite(
                 state=ocp.args.StandardSave(on_disk),
-                history=ocp.args.StandardSave(history),
                 meta=ocp.args.JsonSave(meta),
             ),
             force=True,
         )
         mgr.wait_until_finished()
+        self._chain = history_chain
         self._last_done = done
         self._last_time = time.monotonic()
+        return True

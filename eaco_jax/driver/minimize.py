@@ -614,24 +614,32 @@ def _trim(hist: dict[str, Any], length: int, batched: bool) -> dict[str, np.ndar
     return {k: np.asarray(v)[cut] for k, v in hist.items() if k != _RAN}
 
 
-def _check_nan(history: list[dict[str, Any]], problem: Any, strategy: Strategy,
-               batched: bool) -> None:
-    """Every evaluation so far NaN (in some row): a broken objective; one ProblemError line."""
-    counts = [np.asarray(h[NAN_KEY]) for h in history if NAN_KEY in h]
-    if not counts:
-        return
-    axis = 1 if batched else 0
-    cat = np.concatenate(counts, axis=axis)
-    if cat.shape[axis] == 0:
-        return
-    ran = np.where(cat >= 0, strategy.num_ants, 0).sum(axis=axis)
-    nan = np.where(cat >= 0, cat, 0).sum(axis=axis)
-    if np.any((ran > 0) & (nan >= ran)):
-        name = getattr(problem, "name", type(problem).__name__)
-        raise ProblemError(
-            f"every evaluation of {name!r} returned NaN ({int(np.max(ran))} evaluations): its "
-            "objective or constraints are NaN across the search box; check the function and "
-            "its bounds")
+class _NanTally:
+    """Running count of evaluations and NaN evaluations per row (from the history's
+    ``nan_evaluations`` column, -1 where an iteration did not run): a row whose every
+    evaluation so far was NaN is a broken objective (one ProblemError line)."""
+
+    def __init__(self, num_ants: int, batched: bool) -> None:
+        self.num_ants = num_ants
+        self.axis = 1 if batched else 0
+        self.ran: np.ndarray | int = 0
+        self.nan: np.ndarray | int = 0
+
+    def add(self, hist: dict[str, Any]) -> None:
+        if NAN_KEY not in hist:
+            return
+        counts = np.asarray(hist[NAN_KEY])
+        self.ran = self.ran + np.where(counts >= 0, self.num_ants, 0).sum(axis=self.axis)
+        self.nan = self.nan + np.where(counts >= 0, counts, 0).sum(axis=self.axis)
+
+    def check(self, problem: Any) -> None:
+        ran, nan = np.asarray(self.ran), np.asarray(self.nan)
+        if np.any((ran > 0) & (nan >= ran)):
+            name = getattr(problem, "name", type(problem).__name__)
+            raise ProblemError(
+                f"every evaluation of {name!r} returned NaN ({int(np.max(ran))} evaluations): "
+                "its objective or constraints are NaN across the search box; check the "
+                "function and its bounds")
 
 
 def run(
@@ -653,7 +661,9 @@ def run(
     batched = len(seeds) > 1
     capped = max_evaluations is not None
     budget = _budget_arg(max_evaluations)
-    done, history = 0, []
+    done = 0
+    history: list[dict[str, Any]] = []  # chunks not yet in the checkpoint's history log
+    tally = _NanTally(strategy.num_ants, batched)
     checkpointer = None
     every = None
     if checkpointing is not None:
@@ -669,12 +679,12 @@ def run(
         )
         every = checkpointing.every
         try:
-            restored = checkpointer.restore(state)
+            restored = checkpointer.restore(state, on_segment=tally.add)
         except BaseException:
             checkpointer.close()
             raise
         if restored is not None:
-            state, done, history = restored.state, restored.done, [restored.history]
+            state, done = restored.state, restored.done
             chunk = checkpointer.chunk  # the chunk length the run was started with
             if restored.finished:
                 total = done
@@ -715,10 +725,11 @@ def run(
                 run_seconds += time.perf_counter() - t0
                 chunk_hist = _trim(jax.device_get(hist), length, batched)
                 history.append(chunk_hist)
+                tally.add(chunk_hist)
                 if capped and chunk_hist:  # the iterations any row ran (rows stop on budget)
                     length = next(iter(chunk_hist.values())).shape[1 if batched else 0]
                 done += length
-                _check_nan(history, problem, strategy, batched)
+                tally.check(problem)
                 if bar is not None:
                     bar.update(length)
                     bar.set_postfix(best=float(np.min(np.asarray(state.best_cost))))
@@ -731,19 +742,22 @@ def run(
                 elif signals():
                     reason = "interrupted"
                 stopping = reason != "iterations" or done >= total
-                if checkpointer is not None:
-                    checkpointer.after_chunk(state, done, history,
-                                             finished=stopping and reason != "interrupted",
-                                             force=reason == "interrupted")
+                if checkpointer is not None and checkpointer.after_chunk(
+                        state, done, history, finished=stopping and reason != "interrupted",
+                        force=reason == "interrupted"):
+                    history = []  # in the log now: memory stays flat however long the run
                 if stopping:
                     break
-            if reason == "interrupted" and checkpointer is not None:
-                checkpointer.after_chunk(state, done, history, finished=False, force=True)
+            if reason == "interrupted" and checkpointer is not None and \
+                    checkpointer.after_chunk(state, done, history, finished=False, force=True):
+                history = []
     finally:
         if bar is not None:
             bar.close()
         if checkpointer is not None:
             checkpointer.close()
+    if checkpointer is not None:  # the logged history, then what was not saved
+        history = [checkpointer.history(checkpointer.logged)] + history
 
     result = _result(strategy, problem, state, history, batched, seeds, reason,
                      compile_seconds, run_seconds, done - start, max_evaluations)
