@@ -2,7 +2,9 @@
 
 Sections (``--sections``, comma separated; all by default):
 
-* ``throughput``: per implementation and batch, after compilation (median of ``--repeats``):
+* ``throughput``: per implementation, batch (and, on warp, buffer size: ``--capacity-scales``
+  multiples of :func:`~eaco_jax.gait.rollout_mjx.contact_capacity`), after compilation
+  (median of ``--repeats``):
   **raw** ``lax.scan`` over ``vmap(mjx.step)`` fed random gaits' walk-engine targets
   (precomputed, 50 control steps by default), and **colony** ``GaitProblem.evaluate`` (walk
   engine + physics + fitness) jitted on the same random colony; compile seconds of each
@@ -40,8 +42,9 @@ import mujoco
 import numpy as np
 
 import eaco_jax as ea
+from eaco_jax.gait import rollout_mjx
 from eaco_jax.gait.mjx_import import quiet_mjx
-from eaco_jax.gait.rollout_mjx import CAPACITY_MARGIN, contact_capacity, mjx_model
+from eaco_jax.gait.rollout_mjx import contact_capacity, mjx_model
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
 from eaco_jax.gait.walk_engine import stand_pose
 from eaco_jax.gait.worlds import RobustConfig, couple_controls
@@ -70,8 +73,9 @@ def batched_data(model: mujoco.MjModel, mm, impl: str, spec, nb: int):
     ctrl0 = jnp.asarray(stand_pose(spec, 0.0), jnp.float32)
     if impl == "warp":
         per_world, rows = contact_capacity(model)
-        d0 = mjx.make_data(model, impl="warp", naconmax=int(CAPACITY_MARGIN * per_world * nb),
-                           njmax=int(CAPACITY_MARGIN * rows)).replace(ctrl=ctrl0)
+        margin = rollout_mjx.CAPACITY_MARGIN
+        d0 = mjx.make_data(model, impl="warp", naconmax=int(margin * per_world * nb),
+                           njmax=int(margin * rows)).replace(ctrl=ctrl0)
         return jax.vmap(lambda q: mjx.forward(mm, d0.replace(qpos=q)))(
             jnp.broadcast_to(qpos0, (nb,) + qpos0.shape))
     d = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
@@ -120,17 +124,21 @@ def colony_eval(problem, nb: int, repeats: int) -> dict[str, Any]:
 
 def section_throughput(args) -> list[dict[str, Any]]:
     rows = []
-    for impl in args.impls.split(","):
+    for impl, scale in [(i, s) for i in args.impls.split(",")
+                        for s in (args.capacity_scales.split(",") if i == "warp" else ["1"])]:
+        rollout_mjx.CAPACITY_MARGIN = float(scale)  # Warp buffers at this multiple of the bound
         batches = args.warp_batches if impl == "warp" else args.jax_batches
         for nb in (int(b) for b in batches.split(",")):
             p = make_gait_problem("nao", backend="mjx", horizon=args.steps * 0.02, impl=impl)
             p = p.replace(horizon=args.steps * p.spec.control_dt)
             row: dict[str, Any] = {"impl": impl, "batch": nb, "control_steps": p.n_steps}
+            if impl == "warp":
+                row["capacity_scale"] = float(scale)
             try:
                 row["raw"] = raw_walking(p, impl, nb, args.repeats)
                 row["colony"] = colony_eval(p, nb, args.repeats)
                 row["colony_over_raw"] = row["colony"]["steps_per_s"] / row["raw"]["steps_per_s"]
-                log(f"{impl:5s} {nb:6d}: raw {row['raw']['steps_per_s']:12,.0f} "
+                log(f"{impl:5s} x{scale} {nb:6d}: raw {row['raw']['steps_per_s']:12,.0f} "
                     f"colony {row['colony']['steps_per_s']:12,.0f} steps/s "
                     f"(ratio {row['colony_over_raw']:.2f}; compile raw "
                     f"{row['raw']['compile_s']:.1f} s, colony {row['colony']['compile_s']:.1f} s)")
@@ -138,6 +146,7 @@ def section_throughput(args) -> list[dict[str, Any]]:
                 row["error"] = f"{type(err).__name__}: {str(err).splitlines()[0][:300]}"
                 log(f"{impl:5s} {nb:6d}: {row['error']}")
             rows.append(row)
+    rollout_mjx.CAPACITY_MARGIN = 1.0
     return rows
 
 
@@ -248,6 +257,8 @@ def main() -> None:
     ap.add_argument("--warp-batches", default="4096,16384,32768,65536")
     ap.add_argument("--jax-batches", default="4096,16384")
     ap.add_argument("--steps", type=int, default=50, help="control steps (throughput)")
+    ap.add_argument("--capacity-scales", default="1",
+                    help="Warp buffers at these multiples of the exact bound (throughput)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--search-ants", type=int, default=4096)
     ap.add_argument("--search-worlds", type=int, default=8)

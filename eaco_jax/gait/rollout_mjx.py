@@ -92,13 +92,25 @@ def _warp_model(model):
     return mm.replace(opt=mm.opt.replace(_impl=opt_impl))
 
 
-def contact_capacity(model) -> tuple[int, int]:
-    """Per-world bounds ``(contacts, constraint rows)`` for MuJoCo Warp's fixed buffers.
+#: most contacts MuJoCo Warp's plane colliders write for one pair, by the other geom's type
+#: (mjtGeom: 2 sphere, 3 capsule, 4 ellipsoid, 5 cylinder, 6 box, 7 mesh), read from its
+#: ``collision_primitive.py`` (plane_sphere 1, plane_capsule 2, plane_ellipsoid 1,
+#: plane_cylinder 4, plane_box 8 corners, plane_convex 4); other pairs: 8.
+PLANE_CONTACTS = {2: 1, 3: 2, 4: 1, 5: 4, 6: 8, 7: 4}
+PAIR_CONTACTS = 8
 
-    Contacts: every geom that can touch another (contype/conaffinity) against the floor plane,
-    at most 4 points each (box-plane; spheres and capsules make fewer), plus 4 per colliding
-    pair of robot geoms if self-collision is possible. Rows: each contact's pyramidal friction
-    rows (2 (condim - 1), at least 1), equality rows, limited joints and friction-loss dofs.
+
+def contact_capacity(model) -> tuple[int, int]:
+    """Per-world upper bounds ``(contacts, constraint rows)`` for MuJoCo Warp's fixed buffers.
+
+    Contacts: every geom that can touch the floor plane (contype/conaffinity) with the most
+    contacts its plane collider writes (:data:`PLANE_CONTACTS`: a sphere 1, a box 8), plus
+    :data:`PAIR_CONTACTS` per pair of robot geoms that can collide. Rows: each contact's
+    pyramidal friction rows (2 (condim - 1), at least 1), equality rows, every limited joint
+    and friction-loss dof. Exact bounds, not estimates: the buffers cost time in proportion
+    to their size (MuJoCo Warp launches its constraint kernels over ``njmax`` rows), so they
+    are no larger than the model can fill (the NAO: 8 sole spheres -> 8 contacts, 57 rows;
+    measured on native MuJoCo over random gaits, falls included: at most 8 and 34).
     """
     import numpy as np_
 
@@ -107,15 +119,16 @@ def contact_capacity(model) -> tuple[int, int]:
     collides = (ctype | caff) > 0
     floor = np_.flatnonzero(plane & collides)
     robot = np_.flatnonzero(~plane & collides)
-    pairs = 0
+    contacts = 0
     for f in floor:
-        pairs += int(np_.sum(((ctype[robot] & caff[f]) | (ctype[f] & caff[robot])) > 0))
-    self_pairs = 0
+        touches = ((ctype[robot] & caff[f]) | (ctype[f] & caff[robot])) > 0
+        contacts += sum(PLANE_CONTACTS.get(int(model.geom_type[g]), PAIR_CONTACTS)
+                        for g in robot[touches])
     if len(robot) > 1:
         cross = (ctype[robot][:, None] & caff[robot][None, :]) | (
             ctype[robot][None, :] & caff[robot][:, None])
-        self_pairs = int(np_.sum(np_.triu(cross > 0, 1)))
-    contacts = 4 * (pairs + self_pairs) + model.npair * 4
+        contacts += PAIR_CONTACTS * int(np_.sum(np_.triu(cross > 0, 1)))
+    contacts += PAIR_CONTACTS * model.npair
     condim = int(np_.max(model.geom_condim)) if model.ngeom else 3
     rows = contacts * max(1, 2 * (condim - 1))
     eq_rows = {0: 3, 1: 6, 2: 1, 3: 1}  # connect, weld, joint, tendon
@@ -135,8 +148,9 @@ def _warp_overflow(nacon, nefc, naconmax: int, njmax: int) -> None:
               "eaco_jax.gait.rollout_mjx.CAPACITY_MARGIN", file=sys.stderr)
 
 
-#: Warp buffers are sized at this multiple of :func:`contact_capacity`
-CAPACITY_MARGIN = 1.5
+#: Warp buffers are sized at this multiple of :func:`contact_capacity` (an exact upper bound,
+#: so 1; raised only to compare, e.g. in experiments/warp_gait.py ``--capacity-scale``)
+CAPACITY_MARGIN = 1.0
 
 
 def root_trace(qpos: jax.Array) -> jax.Array:
