@@ -229,6 +229,17 @@ def main() -> None:
         return f"iterations={r.iterations}; moved aside: {moved}"
     record("one flipped byte in the newest checkpoint", "API", flip)
 
+    def flip_history() -> str:
+        shutil.rmtree(ck / "20")
+        seg = sorted((ck / "history").glob("*.npz"))[-2]  # the segment step 15 ends with
+        data = bytearray(seg.read_bytes())
+        data[len(data) // 2] ^= 1
+        seg.write_bytes(bytes(data))
+        r = run_ck(every=5, keep=5)
+        moved = sorted(p.name for p in (ck / "corrupt").iterdir())
+        return f"iterations={r.iterations}; moved aside: {moved}"
+    record("one flipped byte in the history log (`history/*.npz`)", "API", flip_history)
+
     def locked() -> object:
         from eaco_jax.driver.checkpoint import _Lock
         lock = _Lock(ck)

@@ -101,7 +101,9 @@ def main() -> None:
     ap.add_argument("--min-speed", type=float, default=0.5)
     ap.add_argument("--trials", type=int, default=100)
     ap.add_argument("--chunk", type=int, default=1024, help="gaits per batched call")
-    ap.add_argument("--validate-backends", default="mjx,native,accurate")
+    ap.add_argument("--validate-backends", default="mjx,native,accurate",
+                    help="mjx (the problem's impl), mjx-jax, native, accurate (native)")
+    ap.add_argument("--no-validate-stored", dest="validate_stored", action="store_false")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None)
     ap.add_argument("--params-out", default=None)
@@ -160,10 +162,12 @@ def main() -> None:
     save()
     record["validate"] = {}
     for which in args.validate_backends.split(","):
-        backend = "native" if which == "accurate" else which
+        backend = {"accurate": "native", "mjx-jax": "mjx"}.get(which, which)
+        impl = "jax" if which == "mjx-jax" else (args.impl if backend == "mjx" else "auto")
         p = make_gait_problem("nao", backend=backend, horizon=args.horizon, robust=cfg,
-                              impl=args.impl if backend == "mjx" else "auto")
-        for label, vec in (("winner", x[win]), ("stored", base)):
+                              impl=impl)
+        gaits = [("winner", x[win])] + ([("stored", base)] if args.validate_stored else [])
+        for label, vec in gaits:
             t0 = time.perf_counter()
             tr = evaluate_trials(p, vec, n=args.trials, seed=0, accurate=which == "accurate")
             tr["seconds"] = time.perf_counter() - t0
