@@ -204,6 +204,28 @@ def parent(args: argparse.Namespace) -> dict:
     }
 
 
+def plot_record(record: dict, path: Path) -> None:
+    """Resident memory and checkpoint-folder size over the soak (a line per process; kills as
+    ticks), from a record's samples."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = [x["t"] / 60 for x in record["samples"]]
+    fig, (a, b) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    a.plot(t, [x["rss_mb"] or float("nan") for x in record["samples"]], ".", ms=2)
+    a.set_ylabel("resident memory (MB)")
+    b.plot(t, [x["disk_mb"] for x in record["samples"]], ".", ms=2)
+    b.set_ylabel("checkpoint folder (MB)")
+    b.set_xlabel("minutes since the start")
+    a.set_title(f"soak: {record['iterations']:,} iterations, {record['kills']} SIGKILLs, "
+                f"identical to unbroken: {record['identical_to_unbroken']}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=60.0, help="kill/resume phase length")
@@ -221,11 +243,16 @@ def main() -> None:
     ap.add_argument("--parallel-reference", action="store_true",
                     help="run the unbroken reference beside the soak (pinned to another core)")
     ap.add_argument("--cpu", type=int, default=-1, help=argparse.SUPPRESS)
+    ap.add_argument("--plot", default=None, metavar="RECORD.json",
+                    help="only draw RECORD.png from a stored record")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--dir", default="", help=argparse.SUPPRESS)
     ap.add_argument("--result", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
     args.cache = args.cache or str(Path(args.work).absolute() / "jax-cache")
+    if args.plot:
+        plot_record(json.loads(Path(args.plot).read_text()), Path(args.plot).with_suffix(".png"))
+        return
     if args.child:
         child(args)
         return
@@ -234,6 +261,7 @@ def main() -> None:
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text + "\n")
+        plot_record(record, Path(args.out).with_suffix(".png"))
     summary = {k: v for k, v in record.items() if k not in ("cycle_log", "samples")}
     print(json.dumps(summary))
     os._exit(0)
