@@ -409,3 +409,23 @@ def test_segments_past_the_restored_step_are_rewritten(tmp_path):
     _same(unbroken, resumed)
     assert not list((ck / "history").glob(".tmp-*"))
     assert not (ck / "corrupt").exists()
+
+
+def test_driver_holds_only_the_history_since_the_last_save(tmp_path, monkeypatch):
+    """Memory stays flat on a long checkpointed run: every save is handed the chunks since the
+    previous save only (never the whole history), and the result still has every iteration."""
+    from eaco_jax.driver.checkpoint import RunCheckpointer
+
+    seen = []
+    original = RunCheckpointer.after_chunk
+
+    def spy(self, state, done, pending, finished, force=False):
+        seen.append(sum(next(iter(h.values())).shape[0] for h in pending))
+        return original(self, state, done, pending, finished, force)
+
+    monkeypatch.setattr(RunCheckpointer, "after_chunk", spy)
+    res = _run(tmp_path, iterations=60, checkpoint_every=10, chunk_size=5)
+    assert max(seen) <= 10 and len(seen) == 12  # 12 chunks of 5, a save every 2
+    assert res.history["best_cost"].shape[0] == 60
+    unbroken = ea.minimize(_problem(), RandomSearch(), seed=1, iterations=60, chunk_size=5)
+    _same(unbroken, res)
