@@ -46,7 +46,7 @@ def runs():
 def test_backends_agree(runs):
     tn, fn = runs["native"]
     tm, fm = runs["mjx"]
-    assert tn.shape == tm.shape == (2, int(HORIZON / 0.02) + 1, 6)
+    assert tn.shape == tm.shape == (2, int(HORIZON / 0.02) + 1, 7)
     np.testing.assert_allclose(tm[..., :3], tn[..., :3], atol=1e-3)
     np.testing.assert_allclose(fm["fitness"], fn["fitness"], atol=5e-3)
     np.testing.assert_array_equal(fm["fell"], fn["fell"])

@@ -99,7 +99,7 @@ def test_robot_pushed_over_falls(nao):
         mujoco.mj_step(model, data, nstep=k)
         rows.append(root_trace(data.qpos[:7].copy()))
     tr = jnp.asarray(np.stack(rows))
-    s = summarize(tr[:, :3], tr[:, 3:], nao.control_dt, nao.fall_height, nao.fall_tilt_deg)
+    s = summarize(tr[:, :3], tr[:, 3:6], nao.control_dt, nao.fall_height, nao.fall_tilt_deg)
     f = {k: float(v) for k, v in gait_fitness(s).items()}
     assert f["fell"] == 1.0
     expected = f["distance_m"] if f["distance_m"] > 0.10 else 0.0
@@ -118,7 +118,7 @@ def test_real_walk_backwards_and_sideways(nao):
     headings = [0.0, math.pi, math.pi / 2]
     ctrl = np.stack([np.asarray(we.control_sequence(p, steps, nao, h)) for h in headings])
     tr = jnp.asarray(native_trace(ctrl, nao))
-    s = summarize(tr[..., :3], tr[..., 3:], nao.control_dt, nao.fall_height, nao.fall_tilt_deg)
+    s = summarize(tr[..., :3], tr[..., 3:6], nao.control_dt, nao.fall_height, nao.fall_tilt_deg)
     forward = gait_fitness(s, 0.0)
     assert float(forward["distance_m"][0]) > 0.05
     assert float(forward["distance_m"][1]) < 0.0 and float(forward["fitness"][1]) == 0.0
@@ -126,3 +126,51 @@ def test_real_walk_backwards_and_sideways(nao):
     # sideways walking is fine when sideways is the desired direction
     left = gait_fitness(s, 90.0)
     assert float(left["drift_deg"][2]) < 45.0
+
+
+def _turning(total_deg, n=101, fall_at=None):
+    """Torso turning in place by ``total_deg`` (several turns unwrap), optional fall."""
+    pos, up = _trace([0.0, 0.0], n, fall_at)
+    yaw = np.radians(np.linspace(0.0, total_deg, n))
+    yaw = (yaw + np.pi) % (2 * np.pi) - np.pi  # as atan2 reports it
+    return pos, up, jnp.asarray(yaw, jnp.float32)
+
+
+def _turn_fit(pos, up, yaw, turn):
+    out = gait_fitness(summarize(pos, up, DT, 0.2, 50.0, yaw=yaw), 0.0, turn)
+    return {k: float(v) for k, v in out.items()}
+
+
+def test_turning_scores_the_heading_turned_unwrapped():
+    pos, up, yaw = _turning(500.0)  # more than a full turn: the wrap must not lose it
+    left = _turn_fit(pos, up, yaw, "left")
+    assert left["fitness"] == pytest.approx(500.0, abs=0.1)
+    assert left["turn_deg_s"] == pytest.approx(500.0 / 2.0, abs=0.1)
+    assert _turn_fit(pos, up, yaw, "right")["fitness"] == 0.0  # the other way
+    assert _turn_fit(*_turning(-90.0), "right")["fitness"] == pytest.approx(90.0, abs=0.1)
+    # walking straight: the distance rule, as before (turning is only scored when asked)
+    assert _turn_fit(pos, up, yaw, None)["fitness"] == 0.0
+
+
+def test_turning_fall_rule():
+    """A fall keeps the heading turned before it only above FALL_MIN_TURN_DEG."""
+    from eaco_jax.gait.fitness import FALL_MIN_TURN_DEG
+
+    big = _turn_fit(*_turning(100.0, fall_at=51), "left")  # 51 deg turned by row 51
+    assert big["fell"] == 1.0 and big["fitness"] == pytest.approx(51.0, abs=0.1)
+    small = _turn_fit(*_turning(2 * FALL_MIN_TURN_DEG - 10, fall_at=51), "left")
+    assert small["fell"] == 1.0 and small["fitness"] == 0.0
+
+
+def test_heading_column_matches_the_body_on_native_physics():
+    """The trace's 7th column is the torso's yaw: a robot turned by 30 degrees reads 30."""
+    nao = load_robot("nao")
+    model = native_model(nao, 0.0, "fast")
+    data = mujoco.MjData(model)
+    q = np.array(initial_state(nao, model, 0.0)[1:8])
+    half = math.radians(30.0) / 2
+    q[3:7] = [math.cos(half), 0.0, 0.0, math.sin(half)]
+    row = root_trace(q)
+    assert row.shape == (7,) and math.degrees(row[6]) == pytest.approx(30.0, abs=1e-4)
+    assert row[5] == pytest.approx(1.0, abs=1e-6)  # still upright
+    del data

@@ -160,7 +160,7 @@ def test_robust_worlds_agree_across_backends(problem):
     runs = {b: jax.jit(lambda x, w, b=b: problem.replace(backend=b)._rollout(x, w, True))(x, w)
             for b in ("native", "mjx")}
     n, m = runs["native"], runs["mjx"]
-    assert n["trace"].shape == m["trace"].shape == (3, 51, 6)
+    assert n["trace"].shape == m["trace"].shape == (3, 51, 7)
     np.testing.assert_allclose(np.asarray(m["trace"])[..., :3], np.asarray(n["trace"])[..., :3],
                                atol=5e-3)
     np.testing.assert_allclose(np.asarray(m["acc"]["energy"]), np.asarray(n["acc"]["energy"]),

@@ -2,7 +2,7 @@
 
 Each control step sets the rollouts' position targets (the walk engine's output at
 ``t = k * control_dt``, precomputed for every ant) and runs ``substeps`` ``mjx.step`` calls holding
-them. Only the torso trace ``(B, T + 1, 6)`` (root position and up axis after each control step,
+them. Only the torso trace ``(B, T + 1, 7)`` (root position, up axis and heading after each control step,
 row 0 = start) is kept, the same as the native backend returns; ``record=True`` also returns
 ``qpos`` after each control step (for plots and videos).
 
@@ -154,10 +154,12 @@ CAPACITY_MARGIN = 1.0
 
 
 def root_trace(qpos: jax.Array) -> jax.Array:
-    """``qpos`` (..., nq) -> torso position and up (z) axis ``(..., 6)`` from the free joint."""
+    """``qpos`` (..., nq) -> torso position, up (z) axis and heading (yaw of the torso's x axis,
+    rad) ``(..., 7)`` from the free joint."""
     w, x, y, z = (qpos[..., i] for i in range(3, 7))
     up = jnp.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], -1)
-    return jnp.concatenate([qpos[..., :3], up], -1)
+    yaw = jnp.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return jnp.concatenate([qpos[..., :3], up, yaw[..., None]], -1)
 
 
 def _world_model(mm: mjx.Model, fields: dict[str, jax.Array], world_of: jax.Array):
@@ -179,7 +181,7 @@ def mjx_rollout(
 ) -> dict[str, jax.Array]:
     """Roll out the ants' targets ``controls`` ``(A, T, nu)`` on MJX (in R worlds if given).
 
-    Returns ``trace`` ``(B, T + 1, 6)``, ``qpos`` ``(B, T + 1, nq)`` with ``record`` and the
+    Returns ``trace`` ``(B, T + 1, 7)``, ``qpos`` ``(B, T + 1, nq)`` with ``record`` and the
     quality accumulators ``acc`` with ``quality``; ``B = A * R`` (R = 1 without worlds).
     ``impl="warp"`` runs MuJoCo Warp (CUDA) with contact and constraint buffers sized from the
     model and the batch (:func:`contact_capacity`); an overflow is reported on stderr.
@@ -276,14 +278,14 @@ def mjx_rollout(
         else:
             d = jax.lax.fori_loop(0, k, lambda _, dd: step(mmb, dd), d)
         row = root_trace(d.qpos)
-        alive = alive & ~is_down(row[:, :3], row[:, 3:], spec.fall_height, spec.fall_tilt_deg,
+        alive = alive & ~is_down(row[:, :3], row[:, 3:6], spec.fall_height, spec.fall_tilt_deg,
                                  slope_deg)
         if warp:  # buffer use: total contacts (all worlds) and rows per world
             peak = jnp.maximum(peak, jnp.stack([jnp.max(d._impl.nacon), jnp.max(d._impl.nefc)]))
         return (d, acc, alive, peak), (row, d.qpos if record else None)
 
     start = root_trace(data.qpos)
-    alive0 = ~is_down(start[:, :3], start[:, 3:], spec.fall_height, spec.fall_tilt_deg, slope_deg)
+    alive0 = ~is_down(start[:, :3], start[:, 3:6], spec.fall_height, spec.fall_tilt_deg, slope_deg)
     acc0 = ql.new_acc((nb,), nu) if quality else None
     peak0 = jnp.zeros((2,), jnp.int32)
     (_, acc, _, peak), (trace, qpos) = jax.lax.scan(
@@ -307,7 +309,7 @@ def mjx_trace(
 ):
     """Roll out control sequences ``controls`` ``(ants, T, nu)`` on MJX (nominal world).
 
-    Returns the torso trace ``(ants, T + 1, 6)`` (and ``qpos`` ``(ants, T + 1, nq)`` when
+    Returns the torso trace ``(ants, T + 1, 7)`` (and ``qpos`` ``(ants, T + 1, nq)`` when
     ``record``). Traceable: call it inside jit / scan.
     """
     out = mjx_rollout(controls, spec, slope_deg, accuracy, record=record)

@@ -6,7 +6,7 @@ persistent thread pool (one ``MjData`` per thread, one ``MjModel`` per rollout w
 differ); to keep memory small the horizon is cut into time chunks (the state at the end of a chunk
 starts the next; MuJoCo's solver warm start restarts at a chunk boundary, a chunk is at least
 ``STATE_BYTES_PER_CALL`` of states) and only the root pose after each control step is kept. The
-result is the torso trace ``(B, T + 1, 6)`` (position, up axis), row 0 being the initial pose,
+result is the torso trace ``(B, T + 1, 7)`` (position, up axis, heading), row 0 the initial pose,
 exactly what :func:`eaco_jax.gait.fitness.summarize` reads; with ``quality`` also the
 accumulators of :mod:`eaco_jax.gait.quality`, computed from every physics step of each chunk.
 
@@ -44,6 +44,9 @@ from eaco_jax.gait.worlds import (
     world_ctrl_at,
 )
 from eaco_jax.robots import RobotSpec, load_model, stand_qpos
+
+TRACE_COLUMNS = 7
+"""Torso trace columns: position (3), up axis (3), heading (yaw, rad)."""
 
 STATE_BYTES_PER_CALL = 256 * 2**20
 """Upper bound of the state buffer one ``mujoco.rollout`` call may fill (sets the chunk)."""
@@ -92,10 +95,12 @@ def initial_state(spec: RobotSpec, model: mujoco.MjModel, slope_deg: float,
 
 
 def root_trace(qroot: np.ndarray) -> np.ndarray:
-    """``(..., 7)`` root pose (xyz, wxyz) -> ``(..., 6)`` torso position and up (z) axis."""
+    """``(..., 7)`` root pose (xyz, wxyz) -> ``(..., 7)`` torso position, up (z) axis and
+    heading (yaw of the torso's x axis, rad)."""
     w, x, y, z = (qroot[..., i] for i in range(3, 7))
     up = np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], -1)
-    return np.concatenate([qroot[..., :3], up], -1).astype(np.float32)
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.concatenate([qroot[..., :3], up, yaw[..., None]], -1).astype(np.float32)
 
 
 def floor_normal(slope_deg: float) -> np.ndarray:
@@ -127,7 +132,7 @@ def native_rollout(
 
     ``models`` one per rollout (default: the nominal model), ``qpos_init`` ``(B, nq)`` initial
     configurations at rest (default: the keyframe), ``push`` ``(B, T, 3)`` forces on the torso
-    per control step. Returns ``trace`` ``(B, T + 1, 6)``, with ``record_qpos`` also ``qpos``
+    per control step. Returns ``trace`` ``(B, T + 1, 7)``, with ``record_qpos`` also ``qpos``
     ``(B, T + 1, nq)``, with ``quality`` the accumulators ``acc`` (``motor``: per-rollout
     :class:`~eaco_jax.gait.quality.MotorParams` ``(B, nu)``, default from the nominal model).
     """
@@ -147,7 +152,7 @@ def native_rollout(
                                         qpos_init[i]) for i in range(nb)])
     nstate = state.shape[1]
     per_ctrl = max(1, STATE_BYTES_PER_CALL // (8 * nstate * k * max(nb, 1)))
-    trace = np.empty((nb, steps + 1, 6), np.float32)
+    trace = np.empty((nb, steps + 1, TRACE_COLUMNS), np.float32)
     trace[:, 0] = root_trace(state[:, 1:8])
     qpos_rec = np.empty((nb, steps + 1, base.nq), np.float32) if record_qpos else None
     if record_qpos:
@@ -163,7 +168,7 @@ def native_rollout(
         sole = _sole_adr(base, spec)
         normal = floor_normal(slope_deg)
         radius = float(base.geom_size[base.geom(spec.foot_geoms[0]).id, 0])
-        alive = ~is_down(trace[:, 0, :3], trace[:, 0, 3:], spec.fall_height, spec.fall_tilt_deg,
+        alive = ~is_down(trace[:, 0, :3], trace[:, 0, 3:6], spec.fall_height, spec.fall_tilt_deg,
                          slope_deg, xp=np)
     pool = _pool(nthread)
     for start in range(0, steps, per_ctrl):
@@ -182,7 +187,7 @@ def native_rollout(
         if record_qpos:
             qpos_rec[:, start + 1 : stop + 1] = sampled[..., 1 : 1 + base.nq]
         if quality:
-            down = is_down(rows[..., :3], rows[..., 3:], spec.fall_height, spec.fall_tilt_deg,
+            down = is_down(rows[..., :3], rows[..., 3:6], spec.fall_height, spec.fall_tilt_deg,
                            slope_deg, xp=np)
             # alive during control step t: samples 0..t upright
             alive_k = alive[:, None] & np.concatenate(
@@ -223,7 +228,7 @@ def native_trace(
     record_qpos: bool = False,
 ):
     """Roll out ``controls`` ``(ants, T, nu)`` (held per control step); torso trace
-    ``(ants, T + 1, 6)``, plus the joint angles ``(ants, T + 1, nq)`` if ``record_qpos``."""
+    ``(ants, T + 1, 7)``, plus the joint angles ``(ants, T + 1, nq)`` if ``record_qpos``."""
     out = native_rollout(couple_controls(np.asarray(controls), spec, xp=np), spec, slope_deg,
                          accuracy, nthread=nthread, record_qpos=record_qpos)
     return (out["trace"], out["qpos"]) if record_qpos else out["trace"]
@@ -274,7 +279,7 @@ def native_rollout_callback(
     """:func:`native_rollout` as a ``jax.pure_callback`` (usable under jit, vmap and scan).
 
     ``controls`` ``(A, T, nu)``; with ``worlds`` (R of them) every ant runs in every world, rollout
-    ``b = a * R + r``. Returns ``trace`` ``(B, T + 1, 6)`` and, with ``quality``, ``acc`` (dict of
+    ``b = a * R + r``. Returns ``trace`` ``(B, T + 1, 7)`` and, with ``quality``, ``acc`` (dict of
     accumulators, leading axis B). The worlds' targets, pushes and initial poses are computed here
     in JAX by the same functions the MJX backend uses.
     """
@@ -302,7 +307,7 @@ def native_rollout_callback(
             args[k] = tile(getattr(worlds, k))
     nb = a * r
     shapes: dict[str, jax.ShapeDtypeStruct] = {
-        "trace": jax.ShapeDtypeStruct(lead + (nb, t + 1, 6), jnp.float32)}
+        "trace": jax.ShapeDtypeStruct(lead + (nb, t + 1, TRACE_COLUMNS), jnp.float32)}
     if quality:
         template = ql.new_acc((nb,), nu, xp=np)
         shapes["acc"] = {k: jax.ShapeDtypeStruct(lead + v.shape, v.dtype)
@@ -320,7 +325,7 @@ def native_rollout_callback(
             opts = dict(models=models, motor=motor, qpos_init=flat["qinit"].astype(np.float64),
                         push=flat["push"])
         out = native_rollout(flat["ctrl"], spec, slope_deg, accuracy, quality=quality, **opts)
-        res = {"trace": out["trace"].reshape(extra + (nb, t + 1, 6))}
+        res = {"trace": out["trace"].reshape(extra + (nb, t + 1, TRACE_COLUMNS))}
         if quality:
             res["acc"] = {k: v.reshape(extra + (nb,) + v.shape[1:]) for k, v in out["acc"].items()}
         return res

@@ -29,7 +29,7 @@ import numpy as np
 from flax import struct
 
 from eaco_jax.gait import quality as ql
-from eaco_jax.gait.fitness import GaitSummary, aggregate, gait_fitness, summarize
+from eaco_jax.gait.fitness import TURNS, GaitSummary, aggregate, gait_fitness, summarize
 from eaco_jax.gait.rollout_mjx import mjx_rollout
 from eaco_jax.gait.rollout_native import (
     native_model,
@@ -64,6 +64,8 @@ class GaitProblem:
     robust: RobustConfig | None = struct.field(pytree_node=False, default=None)
     penalty: str | None = struct.field(pytree_node=False, default=None)
     penalty_weight: float = struct.field(pytree_node=False, default=0.0)
+    #: "left" / "right": score the heading turned (degrees) instead of the distance walked
+    turn: str | None = struct.field(pytree_node=False, default=None)
     impl: str = struct.field(pytree_node=False, default="jax")  # MJX implementation: jax|warp
 
     kind = "continuous"
@@ -102,8 +104,9 @@ class GaitProblem:
         return self._rollout(solutions, None, False)["trace"]
 
     def summarize(self, trace: jax.Array) -> GaitSummary:
-        return summarize(trace[..., :3], trace[..., 3:], self.spec.control_dt,
-                         self.spec.fall_height, self.spec.fall_tilt_deg, self.slope_deg)
+        return summarize(trace[..., :3], trace[..., 3:6], self.spec.control_dt,
+                         self.spec.fall_height, self.spec.fall_tilt_deg, self.slope_deg,
+                         yaw=trace[..., 6])
 
     def worlds(self, key: jax.Array | None = None, n: int | None = None) -> Worlds:
         """The randomised worlds of one evaluation: ``n`` (default ``robust.R``) worlds drawn
@@ -134,7 +137,7 @@ class GaitProblem:
         r = 1 if worlds is None else worlds.size
         out = self._rollout(solutions, worlds, quality)
         summary = self.summarize(out["trace"])
-        res = gait_fitness(summary, self.direction_deg)
+        res = gait_fitness(summary, self.direction_deg, self.turn)
         res["fall_time"] = summary.fall_time
         if quality:
             res.update(self._quality(out["acc"], res["distance_m"], worlds, m * r))
@@ -238,7 +241,7 @@ class GaitProblem:
                                  quality=quality, record_qpos=True)
         trace, qpos = np.asarray(out["trace"]), np.asarray(out["qpos"])
         summary = prob.summarize(jnp.asarray(trace))
-        metrics = gait_fitness(summary, prob.direction_deg)
+        metrics = gait_fitness(summary, prob.direction_deg, prob.turn)
         res: dict[str, Any] = {k: np.asarray(v)[0].item() for k, v in metrics.items()}
         res["fell"] = bool(res["fell"])
         res["fall_time"] = float(np.asarray(summary.fall_time)[0])
@@ -254,7 +257,7 @@ class GaitProblem:
             res["joints"] = {n: qpos[0, :, model.joint(n).qposadr[0]]
                              for n in prob.spec.joint_names}
             res["torso_xyz"] = trace[0, :, :3]
-            res["torso_up"] = trace[0, :, 3:]
+            res["torso_up"] = trace[0, :, 3:6]
             res["qpos"] = qpos[0]
             res["controls"] = np.asarray(controls)[0]
         return res
@@ -284,7 +287,8 @@ class GaitProblem:
                                             strict=True)}
 
 
-_FITNESS_KEYS = ("fitness", "distance_m", "speed_mps", "fell", "drift_deg", "fall_time")
+_FITNESS_KEYS = ("fitness", "distance_m", "speed_mps", "fell", "drift_deg", "fall_time",
+                 "turn_deg_s")
 
 
 def quality_record(q: dict, joint_names) -> dict[str, Any]:
@@ -325,11 +329,13 @@ def make_gait_problem(
     penalty: str | None = None,
     penalty_weight: float = 0.0,
     impl: str = "auto",
+    turn: str | None = None,
 ) -> GaitProblem:
     """A :class:`GaitProblem` for a known robot ("nao", "ant") and backend ("auto", "mjx",
     "native"); the horizon in seconds, the desired walking direction and floor slope in degrees;
     ``robust`` for fitness over randomised worlds, ``penalty`` ("power" | "cot") and its weight
-    for an energy-aware fitness; ``impl`` the MJX implementation ("jax", "warp" = MuJoCo Warp on
+    for an energy-aware fitness; ``turn`` ("left" | "right") scores the heading turned instead
+    of the distance; ``impl`` the MJX implementation ("jax", "warp" = MuJoCo Warp on
     CUDA, "auto" = warp where it can run)."""
     if isinstance(robot, RobotSpec):
         spec = robot
@@ -351,6 +357,8 @@ def make_gait_problem(
         raise ProblemError(f"accuracy must be 'fast' or 'accurate', got {accuracy!r}")
     if robust is not None and not isinstance(robust, RobustConfig):
         raise ProblemError(f"robust must be a RobustConfig, got {type(robust).__name__}")
+    if turn not in TURNS:
+        raise ProblemError(f"turn must be None, 'left' or 'right', got {turn!r}")
     if penalty not in PENALTIES:
         raise ProblemError(f"penalty must be None, 'power' or 'cot', got {penalty!r}")
     if penalty_weight < 0:
@@ -365,7 +373,7 @@ def make_gait_problem(
         lower=jnp.asarray(lo), upper=jnp.asarray(hi), spec=spec, backend=backend,
         horizon=float(horizon), direction_deg=float(direction_deg), slope_deg=float(slope_deg),
         accuracy=accuracy, name=name, robust=robust, penalty=penalty,
-        penalty_weight=float(penalty_weight), impl=impl)
+        penalty_weight=float(penalty_weight), impl=impl, turn=turn)
 
 
 IMPLS = ("auto", "jax", "warp")

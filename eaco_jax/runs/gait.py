@@ -56,7 +56,8 @@ EVAL_HORIZON = 20.0
 INIT_RADIUS = 0.15
 """``init`` search box: +/- this fraction of each parameter's range around the stored gait."""
 
-METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_time")
+METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_time",
+               "turn_deg_s")
 LEG_PITCH_JOINTS = ("HipPitch", "KneePitch", "AnklePitch")  # not HipYawPitch
 
 
@@ -70,6 +71,8 @@ class GaitSettings:
     horizon: float = setting(4.0, "seconds simulated per gait (the paper uses 20)")
     direction: float = setting(0.0, "desired walking direction in degrees, 0 = forward (+x)")
     slope: float = setting(0.0, "floor slope in degrees, uphill along +x")
+    turn: str | None = setting(None, "score the heading turned instead of the distance: "
+                               "left or right")
     seed: int = setting(0, "random seed")
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
@@ -241,8 +244,11 @@ def fitness_history(history: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def _setting(problem: Any) -> dict[str, Any]:
     """The simulated setting shared by the gait and gait-eval records."""
-    return {"robot": problem.spec.name, "backend": problem.backend, "horizon": problem.horizon,
-            "direction": problem.direction_deg, "slope": problem.slope_deg}
+    out = {"robot": problem.spec.name, "backend": problem.backend, "horizon": problem.horizon,
+           "direction": problem.direction_deg, "slope": problem.slope_deg}
+    if problem.turn is not None:
+        out["turn"] = problem.turn
+    return out
 
 
 def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
@@ -253,13 +259,15 @@ def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
 # --------------------------------------------------------------------------- gait
 def _problem(robot: str, backend: str, horizon: float, direction: float, slope: float,
              impl: str = "auto", robust: int = 0, aggregate: str = "cvar",
-             penalty: str | None = None, penalty_weight: float = 0.0) -> Any:
+             penalty: str | None = None, penalty_weight: float = 0.0,
+             turn: str | None = None) -> Any:
     from eaco_jax.problems.gait import RobustConfig, make_gait_problem
 
     cfg = RobustConfig(R=int(robust), aggregate=aggregate) if robust else None
     return make_gait_problem(robot, backend=backend, horizon=float(horizon),
                              direction_deg=float(direction), slope_deg=float(slope), impl=impl,
-                             robust=cfg, penalty=penalty, penalty_weight=float(penalty_weight))
+                             robust=cfg, penalty=penalty, penalty_weight=float(penalty_weight),
+                             turn=turn)
 
 
 def build(s: GaitSettings) -> Built:
@@ -269,7 +277,7 @@ def build(s: GaitSettings) -> Built:
     from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
     problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope, s.impl, s.robust,
-                       s.aggregate, s.penalty, s.penalty_weight)
+                       s.aggregate, s.penalty, s.penalty_weight, s.turn)
     search = problem
     extra: dict[str, Any] = {"full_problem": problem}
     if s.init is not None:
@@ -361,7 +369,9 @@ def build_eval(s: GaitEvalSettings) -> Built:
         horizon = float(_stored(data, "horizon", "verify_horizon") or EVAL_HORIZON)
     direction = float(_stored(data, "direction", "direction_deg") or 0.0)
     slope = float(_stored(data, "slope", "slope_deg") or 0.0)
-    problem = _problem(str(robot), s.backend, float(horizon), direction, slope, s.impl)
+    turn = _stored(data, "turn")
+    problem = _problem(str(robot), s.backend, float(horizon), direction, slope, s.impl,
+                       turn=turn)
     vec = params_vector(data, problem, str(s.params_file))
     return Built(problem, None, None, {}, extra={"vector": vec})
 
@@ -405,6 +415,10 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
 
 def summary(record: dict[str, Any]) -> str:
     fell = f"fell at {record['fall_time']:.1f} s" if record["fell"] else "no fall"
+    if record.get("turn"):
+        return (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s, turning "
+                f"{record['turn']}): {record['turn_deg_s']:.1f} deg/s, {fell}, "
+                f"fitness {record['fitness']:.1f} deg")
     return (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s): "
             f"speed {record['speed_mps']:.3f} m/s, distance {record['distance_m']:.3f} m, "
             f"{fell}, drift {record['drift_deg']:.1f} deg, fitness {record['fitness']:.3f}")
