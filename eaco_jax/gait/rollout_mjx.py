@@ -3,8 +3,8 @@
 Each control step sets the rollouts' position targets (the walk engine's output at
 ``t = k * control_dt``, precomputed for every ant) and runs ``substeps`` ``mjx.step`` calls holding
 them. Only the torso trace ``(B, T + 1, 7)`` (root position, up axis and heading after each
-control step, row 0 = start) is kept, the same as the native backend returns; ``record=True`` also returns
-``qpos`` after each control step (for plots and videos).
+control step, row 0 = start) is kept, the same as the native backend returns; ``record=True``
+also returns ``qpos`` after each control step (for plots and videos).
 
 With ``worlds`` (:mod:`eaco_jax.gait.worlds`) every ant runs in each of the R worlds, rollout
 ``b = a * R + r``, all in one ``vmap``: the model is batched over the varied fields
