@@ -518,16 +518,11 @@ class RunCheckpointer:
             f"every checkpoint in {self.directory} was corrupt (moved to "
             f"{self.directory / 'corrupt'}); run again to start from scratch")
 
-    @property
-    def logged(self) -> int:
-        """Iterations in the history log (those up to the last save or restore)."""
-        return self._last_done
-
-    def history(self, done: int) -> dict[str, np.ndarray]:
-        """The logged history of iterations ``[0, done)`` (``done`` = :attr:`logged`)."""
-        if done == 0:
+    def history(self) -> dict[str, np.ndarray]:
+        """The logged history: the iterations up to the last save or restore."""
+        if self._last_done == 0:
             return {}
-        return self.log.read(done, self._chain) or {}
+        return self.log.read(self._last_done, self._chain) or {}
 
     def due(self, done: int) -> bool:
         by_iters = self.every is not None and done - self._last_done >= self.every

@@ -757,7 +757,7 @@ def run(
         if checkpointer is not None:
             checkpointer.close()
     if checkpointer is not None:  # the logged history, then what was not saved
-        history = [checkpointer.history(checkpointer.logged)] + history
+        history = [checkpointer.history()] + history
 
     result = _result(strategy, problem, state, history, batched, seeds, reason,
                      compile_seconds, run_seconds, done - start, max_evaluations)
