@@ -51,13 +51,15 @@ def log(*a: Any) -> None:
     print(*a, flush=True)
 
 
-def candidates(problem, base: np.ndarray, n: int, sigma: float, seed: int) -> np.ndarray:
+def candidates(problem, base: np.ndarray, n: int, sigma: float, seed: int,
+               step_scales=(1.0, 0.9, 0.8, 0.7, 0.6),
+               period_scales=(1.0, 1.1, 1.2, 1.35)) -> np.ndarray:
     """The stored gait, its scaled variants (step length x period) and perturbations."""
     names = list(problem.param_names)
     lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
     variants = []
-    for a in (1.0, 0.9, 0.8, 0.7, 0.6):
-        for b in (1.0, 1.1, 1.2, 1.35):
+    for a in step_scales:
+        for b in period_scales:
             v = base.copy()
             v[names.index("step_length")] *= a
             v[names.index("period")] *= b
@@ -78,14 +80,29 @@ def rollout_stats(problem, x: np.ndarray, key, r: int, chunk: int) -> dict[str, 
     of gaits, the same worlds for all)."""
     worlds = problem.worlds(key, r)
     run = jax.jit(lambda xs, w: problem.rollout(xs, w, quality=False))
-    falls, speed, dist = [], [], []
+    falls, speed, dist, fell = [], [], [], []
     for i in range(0, len(x), chunk):
         res = run(jnp.asarray(x[i:i + chunk]), worlds)
-        falls.append(np.asarray(res["fell"]).sum(axis=1))
+        fell.append(np.asarray(res["fell"]))
+        falls.append(fell[-1].sum(axis=1))
         speed.append(np.asarray(res["speed_mps"]).mean(axis=1))
         dist.append(np.asarray(res["distance_m"]).min(axis=1))
     return {"falls": np.concatenate(falls), "speed": np.concatenate(speed),
-            "min_distance": np.concatenate(dist)}
+            "min_distance": np.concatenate(dist), "fell": np.concatenate(fell),
+            "worlds": worlds}
+
+
+def fall_worlds(stats: dict, row: int) -> list[dict]:
+    """The randomised conditions of the worlds in which gait ``row`` fell (for diagnosis)."""
+    w = stats["worlds"]
+    out = []
+    for j in np.flatnonzero(stats["fell"][row]):
+        f = np.asarray(w.push_force[j])
+        out.append({"world": int(j), "friction": float(w.friction[j]),
+                    "latency": int(w.latency[j]), "push_start_step": int(w.push_start[j]),
+                    "push_force_n": float(np.hypot(f[0], f[1])),
+                    "push_angle_deg": float(np.degrees(np.arctan2(f[1], f[0])))})
+    return out
 
 
 def main() -> None:
@@ -99,6 +116,14 @@ def main() -> None:
     ap.add_argument("--finalists", type=int, default=32)
     ap.add_argument("--confirm-worlds", type=int, default=512)
     ap.add_argument("--min-speed", type=float, default=0.5)
+    ap.add_argument("--step-scales", default="1.0,0.9,0.8,0.7,0.6",
+                    help="step-length factors of the stored gait's variants")
+    ap.add_argument("--period-scales", default="1.0,1.1,1.2,1.35",
+                    help="period factors of the stored gait's variants")
+    ap.add_argument("--confirm-jax", type=int, default=0,
+                    help="re-confirm the best K finalists on MJX's JAX implementation too "
+                         "(a second numerical path; the winner has the fewest falls over both)")
+    ap.add_argument("--confirm-jax-worlds", type=int, default=1024)
     ap.add_argument("--trials", type=int, default=100)
     ap.add_argument("--chunk", type=int, default=1024, help="gaits per batched call")
     ap.add_argument("--validate-backends", default="mjx,native,accurate",
@@ -127,7 +152,9 @@ def main() -> None:
     def save() -> None:
         out.write_text(json.dumps(record, indent=1, default=float) + "\n")
 
-    x = candidates(problem, base, args.candidates, args.sigma, args.seed)
+    scales = [tuple(float(v) for v in a.split(",")) for a in (args.step_scales,
+                                                               args.period_scales)]
+    x = candidates(problem, base, args.candidates, args.sigma, args.seed, *scales)
     t0 = time.perf_counter()
     a = rollout_stats(problem, x, world_key(args.seed, 0, SCREEN_STREAM), args.screen_worlds,
                       args.chunk)
@@ -154,10 +181,32 @@ def main() -> None:
     log("confirm", [(r["falls"], round(r["speed_mps"], 3)) for r in record["confirm"]["rows"]])
     save()
     rank = np.lexsort((-b["speed"], b["falls"], b["speed"] < args.min_speed))
+    total = b["falls"].astype(np.int64)
+    if args.confirm_jax and not (problem.backend == "mjx" and problem.impl == "jax"):
+        top = rank[:args.confirm_jax]
+        pj = make_gait_problem("nao", backend="mjx", horizon=args.horizon, robust=cfg,
+                               impl="jax")
+        t0 = time.perf_counter()
+        c = rollout_stats(pj, x[fin[top]], world_key(args.seed + 2, 0, SCREEN_STREAM),
+                          args.confirm_jax_worlds, args.chunk)
+        record["confirm_jax"] = {
+            "worlds": args.confirm_jax_worlds, "seconds": time.perf_counter() - t0,
+            "rows": [{"candidate": int(fin[i]), "falls": int(f), "speed_mps": float(s),
+                      "fall_worlds": fall_worlds(c, j)}
+                     for j, (i, f, s) in enumerate(zip(top, c["falls"], c["speed"],
+                                                       strict=True))]}
+        log("confirm jax", [(r["falls"], round(r["speed_mps"], 3))
+                            for r in record["confirm_jax"]["rows"]])
+        # only the re-confirmed finalists compete: falls over both numerical paths
+        total = np.full(len(fin), np.iinfo(np.int64).max // 2)
+        total[top] = b["falls"][top] + c["falls"]
+        save()
+    rank = np.lexsort((-b["speed"], total, b["speed"] < args.min_speed))
     win = fin[rank[0]]
     record["winner"] = {"candidate": int(win), "vector": x[win].tolist(),
                         "params": problem.params_dict(x[win]),
                         "confirm_falls": int(b["falls"][rank[0]]),
+                        "confirm_fall_worlds": fall_worlds(b, int(rank[0])),
                         "confirm_speed_mps": float(b["speed"][rank[0]])}
     save()
     record["validate"] = {}

@@ -175,6 +175,7 @@ def test_trials_and_accurate():
     assert set(tr) >= {"n", "falls", "speed_mps_mean", "speed_mps_ci95",
                        "cost_of_transport_mean"}
     assert tr["n"] == 6 and tr["falls"] == 0 and tr["accuracy"] == "fast"
+    assert tr["fall_trials"] == []
     assert 0.05 < tr["speed_mps_mean"] < 0.3 and 0 < tr["speed_mps_ci95"] < 0.05
     assert tr == evaluate_trials(p, _gait(), n=6, seed=1)  # reproducible
     assert tr != evaluate_trials(p, _gait(), n=6, seed=2)
@@ -183,6 +184,15 @@ def test_trials_and_accurate():
     assert acc["speed_mps_mean"] == pytest.approx(tr["speed_mps_mean"], abs=0.05)
     with pytest.raises(ProblemError, match="trials"):
         evaluate_trials(p, _gait(), n=0)
+
+
+def test_trials_name_the_worlds_that_fell():
+    """Shoves far beyond the defaults topple some trials: the record names which ones."""
+    p = make_gait_problem("nao", backend="native", horizon=2.0)
+    tr = evaluate_trials(p, _gait(), n=6, seed=1, config=RobustConfig(push=12.0))
+    assert 0 < tr["falls"] == len(tr["fall_trials"])
+    assert all(0 <= i < 6 for i in tr["fall_trials"])
+    assert tr["fall_trials"] == sorted(set(tr["fall_trials"]))
 
 
 def test_export_replays_on_plain_mujoco(tmp_path):

@@ -53,9 +53,10 @@ def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
     """Replay one gait in ``n`` randomised worlds (ranges: ``config``, else the problem's
     ``robust``, else :class:`RobustConfig` defaults) on the problem's backend and horizon.
 
-    Returns ``n``, ``falls``, ``speed_mps_mean``, ``speed_mps_ci95`` (1.96 s / sqrt(n)),
-    ``distance_m_mean``, ``cost_of_transport_mean`` (over trials that walked >= 1 cm),
-    ``mean_power_w_mean``, ``seed``, ``accuracy``, ``backend``.
+    Returns ``n``, ``falls``, ``fall_trials`` (indices of the trials that fell: the same
+    worlds replay with the same ``seed``), ``speed_mps_mean``, ``speed_mps_ci95``
+    (1.96 s / sqrt(n)), ``distance_m_mean``, ``cost_of_transport_mean`` (over trials that
+    walked >= 1 cm), ``mean_power_w_mean``, ``seed``, ``accuracy``, ``backend``.
     """
     if not isinstance(n, int) or n < 1:
         raise ProblemError(f"trials must be a positive integer, got {n!r}")
@@ -72,6 +73,7 @@ def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
     return {
         "n": n,
         "falls": int(np.sum(res["fell"])),
+        "fall_trials": [int(i) for i in np.flatnonzero(res["fell"])],
         "speed_mps_mean": float(np.mean(speed)),
         "speed_mps_ci95": float(1.96 * np.std(speed, ddof=1) / math.sqrt(n)) if n > 1 else 0.0,
         "distance_m_mean": float(np.mean(res["distance_m"])),
