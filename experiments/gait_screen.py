@@ -209,7 +209,22 @@ def main() -> None:
                         "confirm_fall_worlds": fall_worlds(b, int(rank[0])),
                         "confirm_speed_mps": float(b["speed"][rank[0]])}
     save()
+
+    def write_gait() -> None:  # the winner as a gait file, its trials as they come
+        if not args.params_out:
+            return
+        gait = {"robot": "nao", "slope_deg": 0.0, "direction_deg": 0.0,
+                "params": problem.params_dict(x[win]), "vector": x[win].tolist(),
+                "horizon": args.horizon,
+                "source": "experiments/gait_screen.py: screened near the stored gait "
+                          f"({args.candidates} gaits x {args.screen_worlds} worlds, "
+                          f"{args.finalists} x {args.confirm_worlds}) on {device}",
+                "trials": {k: v for k, v in record["validate"].items()
+                           if k.startswith("winner")}}
+        Path(args.params_out).write_text(json.dumps(gait, indent=1, default=float) + "\n")
+
     record["validate"] = {}
+    write_gait()
     for which in args.validate_backends.split(","):
         backend = {"accurate": "native", "mjx-jax": "mjx"}.get(which, which)
         impl = "jax" if which == "mjx-jax" else (args.impl if backend == "mjx" else "auto")
@@ -225,16 +240,7 @@ def main() -> None:
                 f"{tr['speed_mps_mean']:.3f} +- {tr['speed_mps_ci95']:.3f} m/s, "
                 f"CoT {tr['cost_of_transport_mean']:.2f}")
             save()
-    if args.params_out:
-        gait = {"robot": "nao", "slope_deg": 0.0, "direction_deg": 0.0,
-                "params": problem.params_dict(x[win]), "vector": x[win].tolist(),
-                "horizon": args.horizon,
-                "source": "experiments/gait_screen.py: screened near the stored gait "
-                          f"({args.candidates} gaits x {args.screen_worlds} worlds, "
-                          f"{args.finalists} x {args.confirm_worlds}) on {device}",
-                "trials": {k: v for k, v in record["validate"].items()
-                           if k.startswith("winner")}}
-        Path(args.params_out).write_text(json.dumps(gait, indent=1, default=float) + "\n")
+            write_gait()
     log(f"wrote {out}")
 
 
