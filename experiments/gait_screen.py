@@ -1,4 +1,4 @@
-"""Screen gaits near the stored one for falls under randomisation, then validate the winner.
+"""Screen gaits near a stored one for falls under randomisation, then validate the winner.
 
 Issue 12 asks for a stored flat-ground gait with 0 falls in 100 randomised 20 s trials on
 both backends and with ``--accurate``, at >= 0.47 m/s. The stored gait (0.63 m/s) falls in
@@ -14,6 +14,9 @@ one by measurement, in three stages with disjoint world streams:
    gait with :func:`eaco_jax.gait.validate.evaluate_trials` (stream 1, seed 0: what
    ``eaco gait-eval --trials 100`` draws) on MJX, native and native ``--accurate``.
 
+``--confirm-jax K`` re-runs the K best finalists in fresh worlds on MJX's JAX implementation
+(a second numerical path; the winner has the fewest falls over both). ``--base FILE`` screens
+around another gait (a slope or sideways gait: its slope and direction are kept).
 The default ranges of :class:`~eaco_jax.gait.worlds.RobustConfig` throughout. GPU::
 
     python experiments/gait_screen.py --out $OUT/gait_screen.json --params-out $OUT/gait.json
@@ -107,6 +110,8 @@ def fall_worlds(stats: dict, row: int) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--base", type=Path, default=STORED,
+                    help="the gait to screen around (its slope and direction are kept)")
     ap.add_argument("--backend", default="mjx")
     ap.add_argument("--impl", default="auto")
     ap.add_argument("--horizon", type=float, default=20.0)
@@ -134,15 +139,18 @@ def main() -> None:
     ap.add_argument("--params-out", default=None)
     args = ap.parse_args()
     device = jax.devices()[0].device_kind if jax.default_backend() != "cpu" else "cpu"
-    stored = json.loads(STORED.read_text())
+    stored = json.loads(args.base.read_text())
     base = np.asarray(stored["vector"], np.float32)
+    where = {"slope_deg": float(stored.get("slope_deg", 0.0)),
+             "direction_deg": float(stored.get("direction_deg", 0.0))}
     cfg = RobustConfig()
     problem = make_gait_problem("nao", backend=args.backend, horizon=args.horizon,
-                                robust=cfg, impl=args.impl)
+                                robust=cfg, impl=args.impl, **where)
     record: dict[str, Any] = {
         "device": device, "jax": jax.__version__, "mujoco": mujoco.__version__,
         "python": platform.python_version(), "argv": sys.argv[1:], "backend": problem.backend,
-        "impl": getattr(problem, "impl", None), "robust": {k: getattr(cfg, k) for k in (
+        "impl": getattr(problem, "impl", None), "base": str(args.base), **where,
+        "robust": {k: getattr(cfg, k) for k in (
             "friction", "mass", "motor", "target_noise", "latency", "init_noise", "push",
             "push_duration")},
     }
@@ -185,7 +193,7 @@ def main() -> None:
     if args.confirm_jax and not (problem.backend == "mjx" and problem.impl == "jax"):
         top = rank[:args.confirm_jax]
         pj = make_gait_problem("nao", backend="mjx", horizon=args.horizon, robust=cfg,
-                               impl="jax")
+                               impl="jax", **where)
         t0 = time.perf_counter()
         c = rollout_stats(pj, x[fin[top]], world_key(args.seed + 2, 0, SCREEN_STREAM),
                           args.confirm_jax_worlds, args.chunk)
@@ -213,10 +221,10 @@ def main() -> None:
     def write_gait() -> None:  # the winner as a gait file, its trials as they come
         if not args.params_out:
             return
-        gait = {"robot": "nao", "slope_deg": 0.0, "direction_deg": 0.0,
+        gait = {"robot": "nao", **where,
                 "params": problem.params_dict(x[win]), "vector": x[win].tolist(),
                 "horizon": args.horizon,
-                "source": "experiments/gait_screen.py: screened near the stored gait "
+                "source": f"experiments/gait_screen.py: screened near {args.base.name} "
                           f"({args.candidates} gaits x {args.screen_worlds} worlds, "
                           f"{args.finalists} x {args.confirm_worlds}) on {device}",
                 "trials": {k: v for k, v in record["validate"].items()
@@ -229,7 +237,7 @@ def main() -> None:
         backend = {"accurate": "native", "mjx-jax": "mjx"}.get(which, which)
         impl = "jax" if which == "mjx-jax" else (args.impl if backend == "mjx" else "auto")
         p = make_gait_problem("nao", backend=backend, horizon=args.horizon, robust=cfg,
-                              impl=impl)
+                              impl=impl, **where)
         gaits = [("winner", x[win])] + ([("stored", base)] if args.validate_stored else [])
         for label, vec in gaits:
             t0 = time.perf_counter()
