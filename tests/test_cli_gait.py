@@ -11,6 +11,7 @@ import json
 
 import numpy as np
 import pytest
+from eaco_jax.robots import load_robot
 from typer.testing import CliRunner
 
 from eaco_jax.cli import app
@@ -88,6 +89,14 @@ def test_gait_eval_round_trip(native_run, tmp_path):
     for key in ("fitness", "speed_mps", "distance_m", "drift_deg"):
         assert ev[key] == pytest.approx(rec[key], abs=1e-6), key
     assert ev["fell"] == rec["fell"]
+    # energy and gait quality in both records (NAO has a motor datasheet), the same run
+    for r in (rec, ev):
+        q = r["quality"]
+        assert q["mean_power_w"] > 0 and q["peak_power_w"] >= q["mean_power_w"]
+        assert 0 < q["peak_speed_frac"] and 0 < q["peak_torque_frac"]
+        assert set(q["rms_torque_frac"]) == set(load_robot("nao").joint_names)
+        assert isinstance(q["overheating"], list)
+    assert ev["quality"]["energy_j"] == pytest.approx(rec["quality"]["energy_j"], rel=1e-6)
     assert (tmp_path / "eval" / "joint_angles.png").read_bytes()[:8] == PNG_MAGIC
     assert not (tmp_path / "eval" / "best_gait.mp4").exists()
     # a longer horizon is a different simulation of the same parameters

@@ -252,7 +252,13 @@ def _setting(problem: Any) -> dict[str, Any]:
 
 
 def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
-    return {k: sim[k] for k in METRIC_KEYS}
+    """The record's metrics: distance rule and, for a robot with a motor datasheet, the energy
+    and gait-quality record (power, CoT, envelope fractions, RMS torque per joint,
+    overheating joints, slip, airborne fraction, foot gap)."""
+    out = {k: sim[k] for k in METRIC_KEYS}
+    if "quality" in sim:
+        out["quality"] = sim["quality"]
+    return out
 
 
 
@@ -419,9 +425,13 @@ def summary(record: dict[str, Any]) -> str:
         return (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s, turning "
                 f"{record['turn']}): {record['turn_deg_s']:.1f} deg/s, {fell}, "
                 f"fitness {record['fitness']:.1f} deg")
+    q = record.get("quality")
+    energy = (f", CoT {q['cost_of_transport']:.2f}, power {q['mean_power_w']:.0f} W mean / "
+              f"{q['peak_power_w']:.0f} W peak" if q else "")
     return (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s): "
             f"speed {record['speed_mps']:.3f} m/s, distance {record['distance_m']:.3f} m, "
-            f"{fell}, drift {record['drift_deg']:.1f} deg, fitness {record['fitness']:.3f}")
+            f"{fell}, drift {record['drift_deg']:.1f} deg, fitness {record['fitness']:.3f}"
+            f"{energy}")
 
 
 KIND = RunKind("gait", GaitSettings, build, run, row_metrics, summary)
