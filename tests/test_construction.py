@@ -202,8 +202,8 @@ def test_tour_lengths_and_weights_underflow_safe():
 
 
 @pytest.mark.parametrize("chaos_on", [False, True])
-@pytest.mark.parametrize("backup", [64, 4])
-def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, monkeypatch):
+@pytest.mark.parametrize("backup,div", [(64, 8), (4, 8), (4, 2), (64, 1000)])
+def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, div, monkeypatch):
     """The whole-row fallback's plans (lazy branch, dense, backup list + compaction) differ in
     cost only: same tours, bit for bit, with many ants falling back on short candidate lists,
     two stacked weight matrices, the q0 mix and (where the backup list is off) chaos. A
@@ -211,6 +211,7 @@ def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, monkeypatch
     from eaco_jax.ops import construction
 
     monkeypatch.setattr(construction, "BACKUP", backup)
+    monkeypatch.setattr(construction, "COMPACT_DIV", div)  # "compact": every branch taken
     n, m = 60, 50
     d, tau, _ = _instance(n=n, seed=11)
     nbr = np.argsort(np.where(np.eye(n), np.inf, np.asarray(d)), axis=1)[:, :3]
@@ -224,13 +225,42 @@ def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, monkeypatch
     factor = jnp.asarray(rng.uniform(0.8, 1.2, (m, n)), jnp.float32) if chaos_on else None
     built = {plan: np.asarray(construct_tours(jax.random.key(4), stacked, starts, q0, offset,
                                               factor, jnp.asarray(nbr, jnp.int32), plan))
-             for plan in ("lazy", "dense", "backup")}
+             for plan in ("lazy", "dense", "backup", "compact")}
     assert _is_perm(built["lazy"])
     np.testing.assert_array_equal(built["dense"], built["lazy"])
     np.testing.assert_array_equal(built["backup"], built["lazy"])
+    np.testing.assert_array_equal(built["compact"], built["lazy"])
     with pytest.raises(ValueError, match="fallback"):
         construct_tours(jax.random.key(4), stacked, starts, candidates=jnp.asarray(nbr),
                         fallback="sometimes")
+
+
+@pytest.mark.parametrize("n", [5, 31, 32, 33, 64, 100])
+def test_compact_plan_bit_mask(n):
+    """The compact plan's tabu bit mask: packing round-trips, a word gather tests one node,
+    and with 5-nearest candidate lists the plan builds the dense plan's tours at every n
+    (one word, a whole last word, a partial last word)."""
+    from eaco_jax.ops.construction import _pack_bits, _test_bits, _unpack_bits
+
+    rng = np.random.default_rng(n)
+    alive = jnp.asarray(rng.random((7, n)) < 0.5)
+    bits = _pack_bits(alive)
+    assert bits.shape == (7, -(-n // 32)) and bits.dtype == jnp.uint32
+    np.testing.assert_array_equal(_unpack_bits(bits, n), alive)
+    nodes = jnp.asarray(rng.integers(0, n, (7, 4)), jnp.int32)
+    np.testing.assert_array_equal(_test_bits(bits, jnp.arange(7), nodes),
+                                  np.take_along_axis(np.asarray(alive), np.asarray(nodes), 1))
+    if n < 8:
+        return
+    d, tau, _ = _instance(n=n, seed=n)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    nbr = jnp.asarray(np.argsort(np.where(np.eye(n), np.inf, np.asarray(d)), axis=1)[:, :5],
+                      jnp.int32)
+    starts = jnp.asarray(rng.integers(0, n, 40), jnp.int32)
+    tours = {p: np.asarray(construct_tours(jax.random.key(n), w, starts, 0.3, candidates=nbr,
+                                           fallback=p)) for p in ("dense", "compact")}
+    assert _is_perm(tours["compact"])
+    np.testing.assert_array_equal(tours["compact"], tours["dense"])
 
 
 def test_backup_list_is_the_whole_row_order():

@@ -196,7 +196,7 @@ class GraphEACO(Strategy):
     ls_best_k: int | None = None
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
-    #: how construction's whole-row fallback runs ("auto", "lazy", "dense", "backup"; see
+    #: how construction's whole-row fallback runs ("auto", "lazy", "dense", "backup", "compact"; see
     #: construction.construct_tours): a cost choice only, every plan builds the same tours
     construction_fallback: str = "auto"
     #: named parameter set of :meth:`default_params` (:data:`PRESETS`); "paper" also turns
