@@ -33,7 +33,7 @@ FALLBACK_ANTS = 4
 BACKUP = 64
 #: plan "compact": at most m // COMPACT_DIV ants per step take the fallback through one
 #: compaction (their backup lists), and at most that // COMPACT_DIV of them their whole rows;
-#: a step with more takes a branch that serves every ant (exact, rare)
+#: other pending ants wait a step (exact: each ant draws the uniform of its tour position)
 COMPACT_DIV = 8
 
 
@@ -157,16 +157,20 @@ def _test_bits(bits: Array, ants: Array, nodes: Array) -> Array:
 
 
 def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
-                  candidates: Array, backup: int, div: int):
-    """One construction step of plan "compact" (see :func:`construct_tours`).
+                  candidates: Array, uniforms: Array, backup: int, div: int):
+    """One construction step of plan "compact" (see :func:`construct_tours`), for a loop
+    over ``(current, bits, pos, path)``.
 
     The tabu set is a bit mask, ``(m, ceil(n / 32))`` uint32 words (8 MB for 65,536 ants of a
     1,002-city tour: it stays in a GPU's L2 cache, where the bool mask, 8x larger, does not);
     the k candidates cost one word gather each. Ants whose candidates are all tabu are
-    compacted into ``m // div`` slots: their backup lists first (exact, as plan "backup"), then
-    the whole rows of at most ``m // div**2`` ants still left; a step with more pending ants
-    than either bound takes the whole-row search for every ant instead. So the O(n) work per
-    step is bounded by a small set of ants, and no memory traffic scales with m n."""
+    compacted into ``m // div`` slots: their backup lists first (exact, as plan "backup"),
+    then the whole rows of at most ``m // div**2`` ants still left. There is no branch (on a
+    GPU a ``cond`` in the loop syncs with the host every step): a pending ant that finds no
+    slot waits, at the same node, and moves in a later step. Each ant draws the uniform of
+    its own tour position (``uniforms[pos - 1]``), so waiting changes no tour: the tours are
+    those of every other plan, and the loop runs a few steps past ``n - 1`` when ants waited.
+    """
     n = weights.shape[1]
     m = row_offset.shape[0]
     every = jnp.arange(m, dtype=jnp.int32)
@@ -186,48 +190,40 @@ def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | 
         best, ok = _packed_argmax(w)
         return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
 
-    def step(carry, u):
-        current, bits = carry
+    def step(carry):
+        current, bits, pos, path = carry
+        active = pos < n
+        u = uniforms[jnp.clip(pos - 1, 0, n - 2), every]  # the draw of this tour position
         row = row_offset + current
         cand = cands[row]
         w = jnp.where(_test_bits(bits, every, cand), cand_w[row], 0.0)  # (m, k)
         w = w if factor is None else w * jnp.take_along_axis(factor, cand, axis=1)
         c, ok = _sample(w, u, q0)
         nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
-        pending = ~ok
-
-        def compact():
-            ants = jnp.nonzero(pending, size=slots, fill_value=m)[0]  # m: an empty slot
-            real = ants < m
-            a = jnp.minimum(ants, m - 1)
-            if backup:
-                bk = bk_node[row[a]]
-                valid = _test_bits(bits, a, bk) & bk_pos[row[a]]
-                found = jnp.any(valid, axis=1)
-                best = jnp.take_along_axis(bk, jnp.argmax(valid, axis=1)[:, None], axis=1)[:, 0]
-                left = real & ~found
-            else:
-                best, left = jnp.zeros_like(a), real
-
-            def few_rows():
-                sub = jnp.nonzero(left, size=rows_slots, fill_value=slots)[0]
-                s = jnp.minimum(sub, slots - 1)
-                return best.at[sub].set(best_allowed(a[s], current[a[s]], bits), mode="drop")
-
-            def all_rows():
-                return jnp.where(left, best_allowed(a, current[a], bits), best)
-
-            best = jax.lax.cond(jnp.sum(left) <= rows_slots, few_rows, all_rows)
-            return nxt.at[ants].set(best, mode="drop")
-
-        def everyone():
-            return jnp.where(pending, best_allowed(every, current, bits), nxt)
-
-        nxt = jax.lax.cond(jnp.sum(pending) <= slots, compact, everyone)
+        ants = jnp.nonzero(active & ~ok, size=slots, fill_value=m)[0]  # m: an empty slot
+        real = ants < m
+        a = jnp.minimum(ants, m - 1)
+        if backup:
+            bk = bk_node[row[a]]
+            valid = _test_bits(bits, a, bk) & bk_pos[row[a]]
+            found = jnp.any(valid, axis=1)
+            best = jnp.take_along_axis(bk, jnp.argmax(valid, axis=1)[:, None], axis=1)[:, 0]
+            left = real & ~found
+        else:
+            best, left = jnp.zeros_like(a), real
+        sub = jnp.nonzero(left, size=rows_slots, fill_value=slots)[0]
+        s = jnp.minimum(sub, slots - 1)
+        best = best.at[sub].set(best_allowed(a[s], current[a[s]], bits), mode="drop")
+        served = (real & ~left) | jnp.zeros(slots, bool).at[sub].set(True, mode="drop")
+        nxt = nxt.at[ants].set(best, mode="drop")
+        move = active & (ok | jnp.zeros(m, bool).at[ants].set(served, mode="drop"))
+        nxt = jnp.where(move, nxt, current)
         word = bits[every, nxt >> 5]
-        clear = ~(jnp.uint32(1) << (nxt & 31).astype(jnp.uint32))
+        clear = jnp.where(move, ~(jnp.uint32(1) << (nxt & 31).astype(jnp.uint32)),
+                          jnp.uint32(0xFFFFFFFF))
         bits = bits.at[every, nxt >> 5].set(word & clear, unique_indices=True)
-        return (nxt, bits), nxt
+        path = path.at[every, jnp.where(move, pos, n)].set(nxt, mode="drop")
+        return nxt, bits, pos + move.astype(jnp.int32), path
 
     return step
 
@@ -369,10 +365,15 @@ def construct_tours(
     uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
     if plan is None:
         step = _compact_step(weights, row_offset.astype(jnp.int32), q0, factor,
-                             jnp.asarray(candidates, jnp.int32), min(BACKUP, n - 1),
-                             COMPACT_DIV)
-        _, path = jax.lax.scan(step, (starts, _pack_bits(alive)), uniforms, unroll=UNROLL)
-        return jnp.concatenate([starts[:, None], path.T], axis=1)
+                             jnp.asarray(candidates, jnp.int32), uniforms,
+                             min(BACKUP, n - 1), COMPACT_DIV)
+        path = jnp.zeros((m, n), jnp.int32).at[:, 0].set(starts)
+        carry = (starts, _pack_bits(alive), jnp.ones((m,), jnp.int32), path)
+        # n - 1 steps of known count (no host sync on a GPU), then the steps of ants that
+        # waited for a slot, if any
+        carry = jax.lax.fori_loop(0, n - 1, lambda _, c: step(c), carry, unroll=UNROLL)
+        carry = jax.lax.while_loop(lambda c: jnp.any(c[2] < n), step, carry)
+        return carry[3]
     step = _step(weights, row_offset.astype(jnp.int32), q0, factor, candidates, *plan)
     _, path = jax.lax.scan(step, (starts, alive), uniforms, unroll=UNROLL)
     return jnp.concatenate([starts[:, None], path.T], axis=1)
