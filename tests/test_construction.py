@@ -235,6 +235,17 @@ def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, div, monkey
                         fallback="sometimes")
 
 
+def test_compaction_is_nonzero():
+    from eaco_jax.ops.construction import _compact
+
+    rng = np.random.default_rng(0)
+    for p in (0.0, 0.1, 0.5, 1.0):
+        mask = jnp.asarray(rng.random(37) < p)
+        for size in (1, 5, 37, 50):
+            np.testing.assert_array_equal(
+                _compact(mask, size, 99), jnp.nonzero(mask, size=size, fill_value=99)[0])
+
+
 @pytest.mark.parametrize("n", [5, 31, 32, 33, 64, 100])
 def test_compact_plan_bit_mask(n):
     """The compact plan's tabu bit mask: packing round-trips, a word gather tests one node,

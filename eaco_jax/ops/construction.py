@@ -156,6 +156,16 @@ def _test_bits(bits: Array, ants: Array, nodes: Array) -> Array:
     return ((word >> (nodes & 31).astype(jnp.uint32)) & 1).astype(bool)
 
 
+def _compact(mask: Array, size: int, fill: int) -> Array:
+    """Indices of the first ``size`` True entries of ``mask`` in order, ``fill`` after them:
+    ``jnp.nonzero(mask, size=size, fill_value=fill)`` as one prefix sum and one scatter
+    without collisions (``nonzero`` counts with a scatter-add, which contends on a GPU)."""
+    rank = jnp.cumsum(mask, dtype=jnp.int32) - 1
+    where = jnp.where(mask & (rank < size), rank, size)
+    out = jnp.full((size,), fill, jnp.int32)
+    return out.at[where].set(jnp.arange(mask.shape[0], dtype=jnp.int32), mode="drop")
+
+
 def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
                   candidates: Array, uniforms: Array, backup: int, div: int):
     """One construction step of plan "compact" (see :func:`construct_tours`), for a loop
@@ -200,7 +210,7 @@ def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | 
         w = w if factor is None else w * jnp.take_along_axis(factor, cand, axis=1)
         c, ok = _sample(w, u, q0)
         nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
-        ants = jnp.nonzero(active & ~ok, size=slots, fill_value=m)[0]  # m: an empty slot
+        ants = _compact(active & ~ok, slots, m)  # m: an empty slot
         real = ants < m
         a = jnp.minimum(ants, m - 1)
         if backup:
@@ -211,7 +221,7 @@ def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | 
             left = real & ~found
         else:
             best, left = jnp.zeros_like(a), real
-        sub = jnp.nonzero(left, size=rows_slots, fill_value=slots)[0]
+        sub = _compact(left, rows_slots, slots)
         s = jnp.minimum(sub, slots - 1)
         best = best.at[sub].set(best_allowed(a[s], current[a[s]], bits), mode="drop")
         served = (real & ~left) | jnp.zeros(slots, bool).at[sub].set(True, mode="drop")
