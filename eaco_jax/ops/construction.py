@@ -132,6 +132,29 @@ def _backup_lists(weights: Array, size: int) -> tuple[Array, Array]:
     return keys & ((1 << id_bits) - 1), (keys >> id_bits) > 0
 
 
+def _whole_row_best(weights: Array, row_offset: Array, factor: Array | None, ants: Array,
+                    current: Array, alive: Array) -> Array:
+    """The whole-row fallback (ACOTSP's rule) for ants ``ants`` at ``current`` with tabu masks
+    ``alive`` (A, n): the allowed node of largest weight, the first allowed one if all their
+    weights are 0. Every plan uses this one rule, which is why they build the same tours."""
+    w = jnp.where(alive, weights[row_offset[ants] + current], 0.0)
+    w = w if factor is None else w * factor[ants]
+    best, ok = _packed_argmax(w)
+    return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
+
+
+def _candidate_tables(weights: Array, candidates: Array, factor: Array | None, backup: int):
+    """Per-construction tables of the candidate-list plans: the lists repeated for each
+    stacked weight matrix, their choice info, and the backup lists ((None, None) when
+    ``backup`` is 0 or a per-ant chaos factor is on: the lists order nodes by weight alone)."""
+    copies = weights.shape[0] // weights.shape[1]
+    cands = jnp.concatenate([candidates] * copies, axis=0)
+    cand_w = jnp.take_along_axis(weights, cands, axis=1)  # choice info, once per construction
+    if backup and factor is None:
+        return cands, cand_w, *_backup_lists(weights, backup)
+    return cands, cand_w, None, None
+
+
 def _pack_bits(alive: Array) -> Array:
     """(m, n) bool -> (m, ceil(n / 32)) uint32, bit j of word w = node 32 w + j."""
     m, n = alive.shape
@@ -184,21 +207,13 @@ def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | 
     n = weights.shape[1]
     m = row_offset.shape[0]
     every = jnp.arange(m, dtype=jnp.int32)
-    copies = weights.shape[0] // n
-    cands = jnp.concatenate([candidates] * copies, axis=0)
-    cand_w = jnp.take_along_axis(weights, cands, axis=1)
-    backup = backup if factor is None else 0
-    if backup:
-        bk_node, bk_pos = _backup_lists(weights, backup)
+    cands, cand_w, bk_node, bk_pos = _candidate_tables(weights, candidates, factor, backup)
     slots = max(1, min(m, m // div))
     rows_slots = max(1, min(slots, slots // div))
 
     def best_allowed(ants: Array, current: Array, bits: Array) -> Array:
-        alive = _unpack_bits(bits[ants], n)
-        w = jnp.where(alive, weights[row_offset[ants] + current], 0.0)
-        w = w if factor is None else w * factor[ants]
-        best, ok = _packed_argmax(w)
-        return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
+        return _whole_row_best(weights, row_offset, factor, ants, current,
+                               _unpack_bits(bits[ants], n))
 
     def step(carry):
         current, bits, pos, path = carry
@@ -213,7 +228,7 @@ def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | 
         ants = _compact(active & ~ok, slots, m)  # m: an empty slot
         real = ants < m
         a = jnp.minimum(ants, m - 1)
-        if backup:
+        if bk_node is not None:
             bk = bk_node[row[a]]
             valid = _test_bits(bits, a, bk) & bk_pos[row[a]]
             found = jnp.any(valid, axis=1)
@@ -246,12 +261,7 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
     ant_base = (jnp.arange(m, dtype=jnp.int32) * n)[:, None]
 
     def best_allowed(ants: Array, current: Array, alive: Array) -> Array:
-        """For ants ``ants`` (at ``current``, tabu masks ``alive``): the allowed node of
-        largest weight, the first allowed one if all their weights are 0."""
-        w = jnp.where(alive, weights[row_offset[ants] + current], 0.0)
-        w = w if factor is None else w * factor[ants]
-        best, ok = _packed_argmax(w)
-        return jnp.where(ok, best, jnp.argmax(alive, axis=1).astype(jnp.int32))
+        return _whole_row_best(weights, row_offset, factor, ants, current, alive)
 
     every = jnp.arange(m, dtype=jnp.int32)
     if candidates is None:
@@ -264,13 +274,7 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
 
         return step
 
-    copies = weights.shape[0] // n
-    cands = jnp.concatenate([candidates] * copies, axis=0)
-    cand_w = jnp.take_along_axis(weights, cands, axis=1)  # choice info, once per construction
-    # the backup list orders nodes by weight alone: not with a per-ant chaos factor
-    backup = backup if factor is None else 0
-    if backup:
-        bk_node, bk_pos = _backup_lists(weights, backup)
+    cands, cand_w, bk_node, bk_pos = _candidate_tables(weights, candidates, factor, backup)
     few_ants = min(fallback_ants, m)
 
     def fallback(current: Array, alive: Array, nxt: Array, pending: Array) -> Array:
@@ -299,7 +303,7 @@ def _step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,
         c, ok = _sample(w, u, q0)
         nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
         pending = ~ok
-        if backup:  # first allowed node of the backup list: the whole-row answer
+        if bk_node is not None:  # first allowed node of the backup list: the whole-row answer
             bk = bk_node[row]
             valid = alive.reshape(-1)[ant_base + bk] & bk_pos[row]
             first = jnp.argmax(valid, axis=1)
