@@ -83,16 +83,15 @@ def rollout_stats(problem, x: np.ndarray, key, r: int, chunk: int) -> dict[str, 
     of gaits, the same worlds for all)."""
     worlds = problem.worlds(key, r)
     run = jax.jit(lambda xs, w: problem.rollout(xs, w, quality=False))
-    falls, speed, dist, fell = [], [], [], []
+    speed, dist, fell = [], [], []
     for i in range(0, len(x), chunk):
         res = run(jnp.asarray(x[i:i + chunk]), worlds)
         fell.append(np.asarray(res["fell"]))
-        falls.append(fell[-1].sum(axis=1))
         speed.append(np.asarray(res["speed_mps"]).mean(axis=1))
         dist.append(np.asarray(res["distance_m"]).min(axis=1))
-    return {"falls": np.concatenate(falls), "speed": np.concatenate(speed),
-            "min_distance": np.concatenate(dist), "fell": np.concatenate(fell),
-            "worlds": worlds}
+    fell = np.concatenate(fell)  # (gaits, worlds)
+    return {"falls": fell.sum(axis=1), "speed": np.concatenate(speed),
+            "min_distance": np.concatenate(dist), "fell": fell, "worlds": worlds}
 
 
 def fall_worlds(stats: dict, row: int) -> list[dict]:
