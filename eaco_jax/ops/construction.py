@@ -349,7 +349,10 @@ def construct_tours(
         "auto" (:func:`fallback_plan` for this backend), "lazy" (a branch on steps where some
         ant needs it, compacting up to FALLBACK_ANTS ants), "dense" (every ant's whole row on
         every step), "backup" (a backup list of the BACKUP heaviest nodes per row first, then
-        the lazy compacted search for up to m // 16 ants).
+        the lazy compacted search for up to m // 16 ants), "compact" (see
+        :func:`_compact_step`), "kernel" (one Pallas kernel builds whole tours per block of
+        ants, :mod:`eaco_jax.ops.construction_kernel`; needs candidate lists; its prefix sums
+        round in another order, see there).
 
     Returns:
       (m, n) int32 tours, each a permutation of 0..n-1 starting at ``starts``.
@@ -360,7 +363,11 @@ def construct_tours(
         raise ValueError(f"weights must have a multiple of n={n} rows, got {weights.shape}")
     plans = {"lazy": (True, 0, FALLBACK_ANTS), "dense": (False, 0, m),
              "backup": (True, min(BACKUP, n - 1), max(8, m // 16))}
-    if fallback == "compact" and candidates is not None:
+    if fallback == "kernel":
+        if candidates is None:
+            raise ValueError('fallback="kernel" needs candidate lists (candidates=...)')
+        plan = "kernel"
+    elif fallback == "compact" and candidates is not None:
         plan = None
     elif fallback == "compact":
         plan = plans["dense"]  # without candidate lists every step searches whole rows
@@ -370,13 +377,22 @@ def construct_tours(
         plan = plans[fallback]
     else:
         raise ValueError(f"fallback={fallback!r} is not one of auto, {', '.join(plans)}, "
-                         "compact")
+                         "compact, kernel")
     starts = starts.astype(jnp.int32)
     if row_offset is None:
         row_offset = jnp.zeros((m,), jnp.int32)
     q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
     alive = jnp.arange(n)[None, :] != starts[:, None]  # bool: 1 byte per entry
     uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
+    if plan == "kernel":
+        from eaco_jax.ops.construction_kernel import construct_tours_kernel
+
+        cands = jnp.asarray(candidates, jnp.int32)
+        backup = min(BACKUP, n - 1)
+        cands, cand_w, bk_node, bk_ok = _candidate_tables(weights, cands, factor, backup)
+        return construct_tours_kernel(uniforms, weights, starts, q0, row_offset, factor, cands,
+                                      cand_w, bk_node, bk_ok, _pack_bits(alive),
+                                      backup=0 if bk_node is None else backup)
     if plan is None:
         step = _compact_step(weights, row_offset.astype(jnp.int32), q0, factor,
                              jnp.asarray(candidates, jnp.int32), uniforms,

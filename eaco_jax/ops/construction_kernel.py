@@ -1,0 +1,221 @@
+"""Tour construction as ONE Pallas kernel: each program builds the whole tours of a block of ants.
+
+The scan plans of :mod:`eaco_jax.ops.construction` run one batched step per tour position:
+on a GPU each step is a dozen small kernels and ~50 us of launch and sync latency, which caps
+pr1002 near 0.6M tours/s whatever the colony. Here a program owns ``block`` ants and loops over
+all tour positions itself, keeping each ant's current node in registers; per step and ant it
+reads the k candidates of its row and their choice info (one table, cached), one tabu word per
+candidate (the tabu set is a bit mask in global memory, an ant's 128 bytes for n = 1,002), its
+uniform, and writes one path entry and one tabu word. Nothing waits on the host.
+
+The rule is that of every other plan (see ``construct_tours``): Eq. 2 and the q0 rule on the
+candidates that are not tabu, else the first allowed node of the row's backup list, else the
+allowed node of largest weight in the whole row (ACOTSP's rule), the first allowed node when
+all those weights are 0; the uniforms are the same draws. The candidates' prefix sums are
+added one candidate after another here (the scan plans use a small matmul), so a sampled node
+can differ only where a draw falls within a rounding step of a boundary; with weights whose
+sums are exact in float32 the tours are those of every other plan (tests). Greedy choices,
+the backup lists and the whole-row rule are exact integer maxima and agree always.
+
+Runs as a Triton kernel on a GPU; elsewhere in Pallas' interpreter (slow: for tests).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+from jax.experimental import pallas as pl
+
+Array = jax.Array
+
+#: ants per program (a power of 2); 4 warps give one ant per thread at 128
+BLOCK = 128
+#: whole-row fallback: columns per tile of its running maximum (a power of 2)
+ROW_TILE = 128
+
+
+def _key_bits(width: int) -> int:
+    return max(1, (width - 1).bit_length())
+
+
+def _packed_key(w: Array, col: Array, id_bits: int) -> Array:
+    """The int32 key of ``construction._packed_argmax``: weight bits high, column low."""
+    bits = jax.lax.bitcast_convert_type(w, jnp.int32)
+    return (bits & ~((1 << id_bits) - 1)) | col
+
+
+def _allowed(bits_ref, word_base: Array, node: Array) -> Array:
+    """Whether ``node`` is still to visit: bit ``node % 32`` of the ant's word ``node // 32``."""
+    word = bits_ref[word_base + (node >> 5)]
+    return ((word >> (node & 31).astype(jnp.uint32)) & 1) == 1
+
+
+def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, block: int,
+            m_pad: int):
+    it = iter(refs)
+    start_ref, offset_ref, q0_ref, u_ref, cand_ref, cw_ref, w_ref = (next(it) for _ in range(7))
+    bk_node_ref = bk_ok_ref = factor_ref = None
+    if backup:
+        bk_node_ref, bk_ok_ref = next(it), next(it)
+    if has_factor:
+        factor_ref = next(it)
+    bits_in_ref = next(it)  # aliased with bits_ref
+    del bits_in_ref
+    path_ref, bits_ref = next(it), next(it)
+
+    ants = pl.program_id(0) * block + jnp.arange(block, dtype=jnp.int32)
+    word_base = ants * words
+    offset = offset_ref[ants]
+    q0 = q0_ref[ants]
+    cand_bits = _key_bits(k)
+    row_bits = _key_bits(n)
+    start = start_ref[ants]
+    path_ref[ants] = start  # position 0 of the (n, m_pad) path
+
+    def factor_of(node: Array) -> Array:
+        return factor_ref[ants * n + node]
+
+    def whole_row(current: Array, left: Array) -> Array:
+        """ACOTSP's rule for ants ``left``: allowed node of largest weight, else first allowed."""
+        base = (offset + current) * n
+
+        def tile(t, carry):
+            best_key, first = carry
+            col = t * ROW_TILE + jnp.arange(ROW_TILE, dtype=jnp.int32)[None, :]
+            inside = (col < n) & left[:, None]
+            node = jnp.minimum(col, n - 1)
+            alive = _allowed(bits_ref, word_base[:, None], node) & inside
+            w = jnp.where(alive, w_ref[base[:, None] + node], 0.0)
+            if has_factor:
+                w = w * factor_ref[ants[:, None] * n + node]
+            key = jnp.where(alive, _packed_key(w, node, row_bits), 0)
+            best_key = jnp.maximum(best_key, jnp.max(key, axis=1))
+            first = jnp.minimum(first, jnp.min(jnp.where(alive, node, n), axis=1))
+            return best_key, first
+
+        init = (jnp.zeros((block,), jnp.int32), jnp.full((block,), n, jnp.int32))
+        best_key, first = jax.lax.fori_loop(0, -(-n // ROW_TILE), tile, init)
+        ok = (best_key >> row_bits) > 0
+        return jnp.where(ok, best_key & ((1 << row_bits) - 1), jnp.minimum(first, n - 1))
+
+    def step(pos, current):
+        row = offset + current
+        u = u_ref[(pos - 1) * m_pad + ants]
+        # the k candidates, one column at a time: weights, greedy key, prefix sums
+        nodes, weights, cums = [], [], []
+        best_key = jnp.zeros((block,), jnp.int32)
+        total = jnp.zeros((block,), jnp.float32)
+        for j in range(k):
+            node = cand_ref[row * k + j]
+            w = jnp.where(_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
+            if has_factor:
+                w = w * factor_of(node)
+            best_key = jnp.maximum(best_key, _packed_key(w, jnp.int32(j), cand_bits))
+            total = total + w
+            nodes.append(node)
+            weights.append(w)
+            cums.append(total)
+        ok = (best_key >> cand_bits) > 0
+        greedy = best_key & ((1 << cand_bits) - 1)
+        v = (u - q0) / jnp.maximum(1.0 - q0, 1e-12)
+        target = jnp.maximum(v * total, jnp.finfo(jnp.float32).tiny)
+        sampled = jnp.zeros((block,), jnp.int32)
+        for c in cums:
+            sampled = sampled + (c < target).astype(jnp.int32)
+        sampled = jnp.minimum(sampled, k - 1)
+        hit = jnp.zeros((block,), jnp.float32)
+        for j in range(k):
+            hit = jnp.where(sampled == j, weights[j], hit)
+        choice = jnp.where((u < q0) | ~(hit > 0), greedy, sampled)
+        nxt = jnp.zeros((block,), jnp.int32)
+        for j in range(k):
+            nxt = jnp.where(choice == j, nodes[j], nxt)
+        pending = ~ok
+        if backup:
+            def backup_list(nxt_pending):
+                nxt, pending = nxt_pending
+                found = jnp.zeros((block,), bool)
+                best = nxt
+                for j in reversed(range(backup)):  # the first allowed entry wins
+                    node = bk_node_ref[row * backup + j]
+                    valid = (bk_ok_ref[row * backup + j] != 0) & _allowed(bits_ref, word_base,
+                                                                           node)
+                    best = jnp.where(valid, node, best)
+                    found = found | valid
+                return jnp.where(pending & found, best, nxt), pending & ~found
+
+            nxt, pending = jax.lax.cond(jnp.any(pending), backup_list, lambda c: c,
+                                        (nxt, pending))
+        nxt = jax.lax.cond(jnp.any(pending),
+                           lambda: jnp.where(pending, whole_row(current, pending), nxt),
+                           lambda: nxt)
+        word = bits_ref[word_base + (nxt >> 5)]
+        bits_ref[word_base + (nxt >> 5)] = word & ~(jnp.uint32(1) << (nxt & 31).astype(
+            jnp.uint32))
+        path_ref[pos * m_pad + ants] = nxt
+        return nxt
+
+    jax.lax.fori_loop(1, n, step, start)
+
+
+def kernel_backend_ok() -> bool:
+    """Whether the kernel compiles natively here (a GPU); elsewhere it runs interpreted."""
+    return jax.default_backend() == "gpu"
+
+
+@functools.partial(jax.jit, static_argnames=("backup", "block", "interpret"))
+def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: Array,
+                           row_offset: Array, factor: Array | None, candidates: Array,
+                           cand_w: Array, bk_node: Array | None, bk_ok: Array | None,
+                           alive_bits: Array, *, backup: int, block: int = BLOCK,
+                           interpret: bool | None = None) -> Array:
+    """(m, n) tours from the tables of ``construction._candidate_tables``.
+
+    ``uniforms`` (n - 1, m): the draw of each tour position and ant; ``cand_w`` (R, k) the
+    choice info of the candidates (R = rows of ``weights``); ``bk_node``/``bk_ok`` (R, backup)
+    the backup lists or None; ``alive_bits`` (m, words) uint32 the initial tabu bit masks.
+    """
+    n = weights.shape[1]
+    m = starts.shape[0]
+    k = candidates.shape[1]
+    words = alive_bits.shape[1]
+    block = max(16, min(block, 1 << max(0, (m - 1).bit_length())))
+    m_pad = -(-m // block) * block
+    pad = m_pad - m
+
+    def padded(x, value):
+        return jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1), constant_values=value)
+
+    starts = padded(starts.astype(jnp.int32), 0)
+    bits = padded(alive_bits, jnp.uint32(0xFFFFFFFF))
+    u = jnp.pad(uniforms, ((0, 0), (0, pad)), constant_values=0.5).reshape(-1)
+    args = [starts, padded(row_offset.astype(jnp.int32), 0), padded(q0, 0.0), u,
+            candidates.astype(jnp.int32).reshape(-1), cand_w.reshape(-1), weights.reshape(-1)]
+    if backup:
+        args += [bk_node.astype(jnp.int32).reshape(-1), bk_ok.astype(jnp.int32).reshape(-1)]
+    has_factor = factor is not None
+    if has_factor:
+        args.append(padded(factor, 1.0).reshape(-1))
+    args.append(bits.reshape(-1))
+    if interpret is None:
+        interpret = not kernel_backend_ok()
+    kernel = functools.partial(_kernel, n=n, k=k, words=words, backup=backup,
+                               has_factor=has_factor, block=block, m_pad=m_pad)
+    extra = {}
+    if not interpret:
+        from jax.experimental.pallas import triton as pltriton
+
+        extra["compiler_params"] = pltriton.CompilerParams(num_warps=max(1, block // 32),
+                                                           num_stages=1)
+    path, _ = pl.pallas_call(
+        kernel,
+        out_shape=(jax.ShapeDtypeStruct((n * m_pad,), jnp.int32),
+                   jax.ShapeDtypeStruct((m_pad * words,), jnp.uint32)),
+        grid=(m_pad // block,),
+        input_output_aliases={len(args) - 1: 1},
+        interpret=interpret,
+        **extra,
+    )(*args)
+    return path.reshape(n, m_pad)[:, :m].T
