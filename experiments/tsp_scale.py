@@ -51,6 +51,10 @@ def peak_gbs(device: str) -> float | None:
     return None
 
 
+#: the kernel plan's ants per program unless the plan name says ("kernel64")
+DEFAULT_BLOCK = 32
+
+
 def memory_bytes(m: int, n: int, k: int) -> dict:
     """Live arrays of one construction (bytes)."""
     return {"tabu_mask": m * n, "uniforms": 4 * m * (n - 1), "path": 4 * m * (n - 1),
@@ -72,18 +76,28 @@ def time_construction(problem, m: int, fallback: str, repeats: int) -> dict:
     fn = jax.jit(lambda key, w, starts, cand: construct_tours(key, w, starts, 0.0,
                                                               candidates=cand,
                                                               fallback=fallback))
+    kernel_block = None
+    if fallback.startswith("kernel"):  # "kernel64": the kernel plan, 64 ants per program
+        from eaco_jax.ops import construction_kernel
+
+        kernel_block = int(fallback[len("kernel"):] or DEFAULT_BLOCK)
+        construction_kernel.BLOCK = kernel_block
+        fn = jax.jit(lambda key, w, starts, cand: construct_tours(key, w, starts, 0.0,
+                                                                  candidates=cand,
+                                                                  fallback="kernel"))
     args = (w, starts, problem.neighbors)
     t0 = time.perf_counter()
     compiled = fn.lower(jax.random.key(0), *args).compile()
     compile_s = time.perf_counter() - t0
     keys = jax.random.split(jax.random.key(2), repeats + 1)
-    compiled(keys[0], *args).block_until_ready()
+    tours = compiled(keys[0], *args).block_until_ready()
     times = []
     for i in range(repeats):
         t0 = time.perf_counter()
         compiled(keys[i + 1], *args).block_until_ready()
         times.append(time.perf_counter() - t0)
-    return {"construct_seconds": statistics.median(times), "construct_compile_seconds": compile_s}
+    return {"construct_seconds": statistics.median(times), "construct_compile_seconds": compile_s,
+            "kernel_block": kernel_block}, tours
 
 
 def main() -> None:
@@ -91,7 +105,8 @@ def main() -> None:
     ap.add_argument("--instances", nargs="+", default=["pcb442", "rat783", "pr1002", "d2103"])
     ap.add_argument("--ants", type=int, nargs="+", default=[1024, 4096, 16384, 65536])
     ap.add_argument("--fallbacks", nargs="+", default=["auto"],
-                    help="construction fallback plans to compare (auto lazy dense backup)")
+                    help="construction plans to compare (auto lazy dense backup compact kernel; "
+                         "kernelB: the kernel with B ants per program)")
     ap.add_argument("--iterations", type=int, default=20)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--skip-colony", action="store_true", help="construction timing only")
@@ -101,6 +116,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
     enable_compile_cache(args.cache_dir)
+
+    import jax.numpy as jnp
 
     from eaco_jax import minimize
     from eaco_jax.strategies.graph_eaco import GraphEACO
@@ -117,13 +134,22 @@ def main() -> None:
         problem = find_instance(name, args.data_dir)
         n, k = problem.n, int(problem.neighbors.shape[1])
         for m in args.ants:
+            reference = None
             for fb in args.fallbacks:
                 row = {"instance": name, "n": n, "k": k, "ants": m, "fallback": fb}
                 try:
-                    row.update(time_construction(problem, m, fb, args.repeats))
+                    timing, tours = time_construction(problem, m, fb, args.repeats)
+                    row.update(timing)
+                    # the plans' tours from the same draws: the share identical to the first
+                    # plan's (1.0 for the scan plans; the kernel's prefix sums round apart)
+                    if reference is None:
+                        reference = tours
+                    row["same_tours_as_first_plan"] = float(
+                        jnp.mean(jnp.all(tours == reference, axis=1)))
+                    del tours
                     if not args.skip_colony:
                         strategy = GraphEACO(num_ants=m, local_search="none",
-                                             construction_fallback=fb)
+                                             construction_fallback=fb.rstrip("0123456789"))
                         res = minimize(problem, strategy, seed=0, iterations=args.iterations,
                                        chunk_size=max(1, args.iterations // 4))
                         row.update(colony_seconds_per_iteration=res.seconds_per_iteration,

@@ -385,14 +385,16 @@ def construct_tours(
     alive = jnp.arange(n)[None, :] != starts[:, None]  # bool: 1 byte per entry
     uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
     if plan == "kernel":
-        from eaco_jax.ops.construction_kernel import construct_tours_kernel
+        from eaco_jax.ops import construction_kernel
 
         cands = jnp.asarray(candidates, jnp.int32)
         backup = min(BACKUP, n - 1)
         cands, cand_w, bk_node, bk_ok = _candidate_tables(weights, cands, factor, backup)
-        return construct_tours_kernel(uniforms, weights, starts, q0, row_offset, factor, cands,
-                                      cand_w, bk_node, bk_ok, _pack_bits(alive),
-                                      backup=0 if bk_node is None else backup)
+        return construction_kernel.construct_tours_kernel(
+            uniforms, weights, starts, q0, row_offset, factor, cands, cand_w, bk_node, bk_ok,
+            _pack_bits(alive), backup=0 if bk_node is None else backup,
+            block=construction_kernel.BLOCK,
+            variant=tuple(sorted(construction_kernel.VARIANT.items())))
     if plan is None:
         step = _compact_step(weights, row_offset.astype(jnp.int32), q0, factor,
                              jnp.asarray(candidates, jnp.int32), uniforms,

@@ -31,9 +31,12 @@ from jax.experimental import pallas as pl
 Array = jax.Array
 
 #: ants per program (a power of 2); 4 warps give one ant per thread at 128
-BLOCK = 128
+BLOCK = 32
 #: whole-row fallback: columns per tile of its running maximum (a power of 2)
 ROW_TILE = 128
+#: how the fallbacks run (profiling): backup "unrolled" | "tile" | "serial" | "skip";
+#: whole row "tile" | "serial" | "skip" ("skip" builds wrong tours: timing only)
+VARIANT = {"backup": "serial", "whole_row": "serial"}
 
 
 def _key_bits(width: int) -> int:
@@ -44,6 +47,11 @@ def _packed_key(w: Array, col: Array, id_bits: int) -> Array:
     """The int32 key of ``construction._packed_argmax``: weight bits high, column low."""
     bits = jax.lax.bitcast_convert_type(w, jnp.int32)
     return (bits & ~((1 << id_bits) - 1)) | col
+
+
+def _any(x: Array) -> Array:
+    """Whether any entry is True (a max: Triton has no boolean reduction)."""
+    return jnp.max(x.astype(jnp.int32)) > 0
 
 
 def _allowed(bits_ref, word_base: Array, node: Array) -> Array:
@@ -65,7 +73,8 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
     del bits_in_ref
     path_ref, bits_ref = next(it), next(it)
 
-    ants = pl.program_id(0) * block + jnp.arange(block, dtype=jnp.int32)
+    first_ant = pl.program_id(0) * block
+    ants = first_ant + jnp.arange(block, dtype=jnp.int32)
     word_base = ants * words
     offset = offset_ref[ants]
     q0 = q0_ref[ants]
@@ -99,6 +108,64 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
         best_key, first = jax.lax.fori_loop(0, -(-n // ROW_TILE), tile, init)
         ok = (best_key >> row_bits) > 0
         return jnp.where(ok, best_key & ((1 << row_bits) - 1), jnp.minimum(first, n - 1))
+
+    lane = jnp.arange(block, dtype=jnp.int32)
+    row_width = 1 << max(0, (n - 1).bit_length())
+
+    def pick(vec: Array, a: Array) -> Array:
+        """Entry ``a`` of a per-lane vector, as a scalar."""
+        return jnp.sum(jnp.where(lane == a, vec, 0))
+
+    def whole_row_serial(current: Array, left: Array, nxt: Array) -> Array:
+        """The whole-row rule one left ant at a time, its row spread over the block."""
+        cols = jnp.arange(row_width, dtype=jnp.int32)
+        node = jnp.minimum(cols, n - 1)
+
+        def body(carry):
+            nxt, left = carry
+            a = jnp.min(jnp.where(left, lane, block))
+            ant = first_ant + a
+            alive = _allowed(bits_ref, ant * words, node) & (cols < n)
+            w = jnp.where(alive, w_ref[(pick(offset, a) + pick(current, a)) * n + node], 0.0)
+            if has_factor:
+                w = w * factor_ref[ant * n + node]
+            best_key = jnp.max(jnp.where(alive, _packed_key(w, node, row_bits), 0))
+            first = jnp.min(jnp.where(alive, node, n))
+            best = jnp.where((best_key >> row_bits) > 0, best_key & ((1 << row_bits) - 1),
+                             jnp.minimum(first, n - 1))
+            return jnp.where(lane == a, best, nxt), left & (lane != a)
+
+        return jax.lax.while_loop(lambda c: _any(c[1]), body, (nxt, left))[0]
+
+    def backup_tile(row: Array, nxt: Array, pending: Array):
+        j = jnp.arange(backup, dtype=jnp.int32)[None, :]
+        idx = row[:, None] * backup + j
+        bk = bk_node_ref[idx]
+        valid = (bk_ok_ref[idx] != 0) & _allowed(bits_ref, word_base[:, None], bk)
+        first = jnp.min(jnp.where(valid, j, backup), axis=1)
+        best = jnp.sum(jnp.where(j == first[:, None], bk, 0), axis=1)
+        found = first < backup
+        return jnp.where(pending & found, best, nxt), pending & ~found
+
+    def backup_serial(row: Array, nxt: Array, pending: Array):
+        j = jnp.arange(backup, dtype=jnp.int32)
+
+        def body(carry):
+            nxt, pending, todo = carry
+            a = jnp.min(jnp.where(todo, lane, block))
+            ant = first_ant + a
+            idx = pick(row, a) * backup + j
+            bk = bk_node_ref[idx]
+            valid = (bk_ok_ref[idx] != 0) & _allowed(bits_ref, ant * words, bk)
+            first = jnp.min(jnp.where(valid, j, backup))
+            best = jnp.sum(jnp.where(j == first, bk, 0))
+            here = lane == a
+            found = first < backup
+            return (jnp.where(here & found, best, nxt), pending & ~(here & found),
+                    todo & ~here)
+
+        out = jax.lax.while_loop(lambda c: _any(c[2]), body, (nxt, pending, pending))
+        return out[0], out[1]
 
     def step(pos, current):
         row = offset + current
@@ -146,11 +213,22 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
                     found = found | valid
                 return jnp.where(pending & found, best, nxt), pending & ~found
 
-            nxt, pending = jax.lax.cond(jnp.any(pending), backup_list, lambda c: c,
-                                        (nxt, pending))
-        nxt = jax.lax.cond(jnp.any(pending),
-                           lambda: jnp.where(pending, whole_row(current, pending), nxt),
-                           lambda: nxt)
+            kind = VARIANT["backup"]
+            if kind == "unrolled":
+                nxt, pending = jax.lax.cond(_any(pending), backup_list, lambda c: c,
+                                            (nxt, pending))
+            elif kind == "tile":
+                nxt, pending = jax.lax.cond(_any(pending), lambda c: backup_tile(row, *c),
+                                            lambda c: c, (nxt, pending))
+            elif kind == "serial":
+                nxt, pending = backup_serial(row, nxt, pending)
+        kind = VARIANT["whole_row"]
+        if kind == "tile":
+            nxt = jax.lax.cond(_any(pending),
+                               lambda: jnp.where(pending, whole_row(current, pending), nxt),
+                               lambda: nxt)
+        elif kind == "serial":
+            nxt = whole_row_serial(current, pending, nxt)
         word = bits_ref[word_base + (nxt >> 5)]
         bits_ref[word_base + (nxt >> 5)] = word & ~(jnp.uint32(1) << (nxt & 31).astype(
             jnp.uint32))
@@ -165,12 +243,12 @@ def kernel_backend_ok() -> bool:
     return jax.default_backend() == "gpu"
 
 
-@functools.partial(jax.jit, static_argnames=("backup", "block", "interpret"))
+@functools.partial(jax.jit, static_argnames=("backup", "block", "interpret", "variant"))
 def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: Array,
                            row_offset: Array, factor: Array | None, candidates: Array,
                            cand_w: Array, bk_node: Array | None, bk_ok: Array | None,
                            alive_bits: Array, *, backup: int, block: int = BLOCK,
-                           interpret: bool | None = None) -> Array:
+                           interpret: bool | None = None, variant: tuple = ()) -> Array:
     """(m, n) tours from the tables of ``construction._candidate_tables``.
 
     ``uniforms`` (n - 1, m): the draw of each tour position and ant; ``cand_w`` (R, k) the
