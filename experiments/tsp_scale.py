@@ -130,6 +130,11 @@ def main() -> None:
     print(f"{'instance':>8} {'ants':>6} {'fallback':>8} {'colony tours/s':>15} {'ms/it':>8} "
           f"{'compile s':>9} {'constr tours/s':>15} {'model GB/s':>10} {'roofline':>8} "
           f"{'mem MB':>8}")
+    def save(rows: list) -> None:  # after every row: a run cut short keeps what it measured
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps({"info": info, "peak_gbs": peak, "argv": sys.argv[1:],
+                                        "rows": rows}, indent=1) + "\n")
+
     for name in args.instances:
         problem = find_instance(name, args.data_dir)
         n, k = problem.n, int(problem.neighbors.shape[1])
@@ -169,6 +174,7 @@ def main() -> None:
                 mem = memory_bytes(m, n, k)
                 row["memory_bytes"] = mem
                 rows.append(row)
+                save(rows)
                 ct = row.get("colony_tours_per_second", float("nan"))
                 ms = 1000 * row.get("colony_seconds_per_iteration", float("nan"))
                 cs = row.get("colony_compile_seconds", float("nan"))
@@ -177,9 +183,7 @@ def main() -> None:
                       f"{row['construct_tours_per_second']:15,.0f} {row['model_gbs']:10.1f} "
                       f"{rf if rf is not None else float('nan'):8.3f} "
                       f"{sum(mem.values()) / 1e6:8.0f}", flush=True)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"info": info, "peak_gbs": peak, "argv": sys.argv[1:],
-                                    "rows": rows}, indent=1) + "\n")
+    save(rows)
     print(f"wrote {args.out}")
 
 
