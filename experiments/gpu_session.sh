@@ -23,6 +23,7 @@ env_vars() {
 case "${1:-env}" in
 install)
     python3 -m pip install -q --no-index --no-deps --no-compile --target $SITE .whl/*.whl
+    rm -rf $EACO  # pip --target does not replace an installed copy: a stale one would run
     python3 -m pip install -q --no-index --no-deps --no-build-isolation --target $EACO .
     ;;
 warp-a)
