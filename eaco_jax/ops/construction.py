@@ -98,14 +98,13 @@ def _sample(w: Array, u: Array, q0: Array) -> tuple[Array, Array]:
 
 
 def fallback_plan(m: int, n: int, backend: str | None = None) -> tuple[bool, int, int]:
-    """(lazy, backup, fallback_ants) of the automatic plan for the whole-row fallback.
+    """(lazy, backup, fallback_ants) of the automatic scan plan for the whole-row fallback.
 
     CPU: "lazy" (a branch on steps where some ant needs the fallback, at most FALLBACK_ANTS
-    compacted ants; measured best on XLA:CPU). Accelerators: "dense", every ant's whole row on
-    every step, as measured so far on an H100; that is O(m n) memory traffic per step, the
-    roofline of large colonies, and "backup" (a list of each row's heaviest nodes, exact, then
-    compacted whole rows for the few ants left) removes it: to be switched here once
-    ``experiments/tsp_scale.py --fallbacks dense backup lazy`` has measured it on a GPU.
+    compacted ants; measured best on XLA:CPU). Accelerators without candidate lists: "dense".
+    (With candidate lists on a GPU, ``construct_tours`` runs plan "kernel" instead: 4-17x the
+    tours/s of every scan plan at 1,024-65,536 ants on an H100,
+    ``experiments/results/gpu/tsp_scale_pr1002_h100_kernel.json``.)
     """
     backend = jax.default_backend() if backend is None else backend
     if backend == "cpu":
@@ -346,7 +345,7 @@ def construct_tours(
         all tabu moves to the allowed node of largest weight (as ACOTSP does); the cost of a
         step drops from O(m n) sampling to O(m k). Without them Eq. 2 runs over all n nodes.
       fallback: how that whole-row search runs (static; every plan builds the same tours):
-        "auto" (:func:`fallback_plan` for this backend), "lazy" (a branch on steps where some
+        "auto" ("kernel" on a GPU with candidate lists, else :func:`fallback_plan`), "lazy" (a branch on steps where some
         ant needs it, compacting up to FALLBACK_ANTS ants), "dense" (every ant's whole row on
         every step), "backup" (a backup list of the BACKUP heaviest nodes per row first, then
         the lazy compacted search for up to m // 16 ants), "compact" (see
@@ -371,6 +370,8 @@ def construct_tours(
         plan = None
     elif fallback == "compact":
         plan = plans["dense"]  # without candidate lists every step searches whole rows
+    elif fallback == "auto" and candidates is not None and jax.default_backend() == "gpu":
+        plan = "kernel"
     elif fallback == "auto":
         plan = fallback_plan(m, n)
     elif fallback in plans:
