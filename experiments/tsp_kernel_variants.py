@@ -1,18 +1,21 @@
-"""Where the construction kernel spends its time: its fallback variants and block sizes.
+"""Tours/s of the construction kernel against its block size (ants per program).
 
-For each instance, colony size, block size (ants per program) and fallback variant of
-``eaco_jax.ops.construction_kernel`` (``VARIANT``: the backup lists "unrolled" / "tile" /
-"serial" / "skip", the whole-row search "tile" / "serial" / "skip"; "skip" builds wrong tours
-and times the rest), times one jitted construction on the initial weights (median of
-``--repeats``), checks the tours against plan "compact" from the same draws, and writes JSON:
+For each instance, colony size and block size of ``eaco_jax.ops.construction_kernel``, times
+one jitted construction on the initial weights (median of ``--repeats``), checks its tours
+against plan "compact" from the same draws, and writes JSON:
 
-    python experiments/tsp_kernel_variants.py --instances pr1002 --ants 4096
+    python experiments/tsp_kernel_variants.py --instances pr1002 --ants 4096 --blocks 32 128
+
+``results/gpu/tsp_kernel_variants_h100.json`` also compares the kernel's fallback variants,
+measured at commit e608b43, which had them as a switch: backup lists unrolled over the block,
+as (block, 64) tiles or one pending ant at a time; whole rows as (block, 128) tiles or one ant
+at a time ("skip": left out, wrong tours, to time the rest). The code keeps the fastest, one
+ant at a time for both.
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import statistics
 import sys
@@ -28,8 +31,6 @@ def main() -> None:
     ap.add_argument("--instances", nargs="+", default=["pr1002"])
     ap.add_argument("--ants", type=int, nargs="+", default=[4096])
     ap.add_argument("--blocks", type=int, nargs="+", default=[32, 128])
-    ap.add_argument("--backup", nargs="+", default=["unrolled", "tile", "serial", "skip"])
-    ap.add_argument("--whole-row", nargs="+", default=["tile", "serial", "skip"])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", type=Path, default=Path("results/tsp_kernel_variants.json"))
     args = ap.parse_args()
@@ -43,8 +44,8 @@ def main() -> None:
     info = device_info()
     rows = []
     print(f"{info['device']}, jax {info['jax']}")
-    print(f"{'instance':>8} {'ants':>6} {'block':>5} {'backup':>8} {'row':>6} {'tours/s':>12} "
-          f"{'compile s':>9} {'same':>5}")
+    print(f"{'instance':>8} {'ants':>6} {'block':>5} {'tours/s':>12} {'compile s':>9} "
+          f"{'same':>5}")
     for name in args.instances:
         problem = find_instance(name)
         n = problem.n
@@ -60,11 +61,9 @@ def main() -> None:
 
             fargs = (w, starts, problem.neighbors)
             reference = build("compact")(jax.random.key(0), *fargs).block_until_ready()
-            for block, bk, wr in itertools.product(args.blocks, args.backup, args.whole_row):
+            for block in args.blocks:
                 ck.BLOCK = block
-                ck.VARIANT.update(backup=bk, whole_row=wr)
-                row = {"instance": name, "n": n, "ants": m, "block": block, "backup": bk,
-                       "whole_row": wr}
+                row = {"instance": name, "n": n, "ants": m, "block": block}
                 try:
                     fn = build("kernel")
                     t0 = time.perf_counter()
@@ -87,7 +86,7 @@ def main() -> None:
                 args.out.parent.mkdir(parents=True, exist_ok=True)
                 args.out.write_text(json.dumps({"info": info, "argv": sys.argv[1:],
                                                 "rows": rows}, indent=1) + "\n")
-                print(f"{name:>8} {m:>6} {block:>5} {bk:>8} {wr:>6} "
+                print(f"{name:>8} {m:>6} {block:>5} "
                       f"{row.get('tours_per_second', float('nan')):12,.0f} "
                       f"{row.get('compile_seconds', float('nan')):9.1f} "
                       f"{row.get('same_tours', float('nan')):5.3f} {row.get('error', '')[:80]}",

@@ -225,14 +225,17 @@ def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, div, monkey
     factor = jnp.asarray(rng.uniform(0.8, 1.2, (m, n)), jnp.float32) if chaos_on else None
     built = {plan: np.asarray(construct_tours(jax.random.key(4), stacked, starts, q0, offset,
                                               factor, jnp.asarray(nbr, jnp.int32), plan))
-             for plan in ("lazy", "dense", "backup", "compact")}
+             for plan in ("lazy", "dense", "backup", "compact", "kernel")}
     assert _is_perm(built["lazy"])
     np.testing.assert_array_equal(built["dense"], built["lazy"])
     np.testing.assert_array_equal(built["backup"], built["lazy"])
     np.testing.assert_array_equal(built["compact"], built["lazy"])
+    np.testing.assert_array_equal(built["kernel"], built["lazy"])  # 2 programs, 14 padded ants
     with pytest.raises(ValueError, match="fallback"):
         construct_tours(jax.random.key(4), stacked, starts, candidates=jnp.asarray(nbr),
                         fallback="sometimes")
+    with pytest.raises(ValueError, match="kernel.*candidate lists"):
+        construct_tours(jax.random.key(4), stacked, starts, fallback="kernel")
 
 
 def test_compaction_is_nonzero():
@@ -269,9 +272,10 @@ def test_compact_plan_bit_mask(n):
                       jnp.int32)
     starts = jnp.asarray(rng.integers(0, n, 40), jnp.int32)
     tours = {p: np.asarray(construct_tours(jax.random.key(n), w, starts, 0.3, candidates=nbr,
-                                           fallback=p)) for p in ("dense", "compact")}
-    assert _is_perm(tours["compact"])
+                                           fallback=p)) for p in ("dense", "compact", "kernel")}
+    assert _is_perm(tours["compact"]) and _is_perm(tours["kernel"])
     np.testing.assert_array_equal(tours["compact"], tours["dense"])
+    np.testing.assert_array_equal(tours["kernel"], tours["dense"])
 
 
 def test_backup_list_is_the_whole_row_order():
@@ -286,3 +290,44 @@ def test_backup_list_is_the_whole_row_order():
         mask[np.asarray(nodes[r, :3])] = False  # the three heaviest are tabu
         best, ok = _packed_argmax(jnp.where(jnp.asarray(mask), w[r], 0.0))
         assert bool(ok) and bool(positive[r, 3]) and int(best) == int(nodes[r, 3])
+
+
+@pytest.mark.parametrize("block", [16, 64])
+def test_kernel_plan_blocks_and_greedy(block, monkeypatch):
+    """The kernel plan at other block sizes (several programs, or one partly padded) builds
+    the lazy plan's tours, the q0 = 1 greedy tours included; one ant works too."""
+    from eaco_jax.ops import construction_kernel
+
+    monkeypatch.setattr(construction_kernel, "BLOCK", block)
+    n, m = 45, 70
+    d, tau, _ = _instance(n=n, seed=5)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    nbr = jnp.asarray(np.argsort(np.where(np.eye(n), np.inf, np.asarray(d)), axis=1)[:, :4],
+                      jnp.int32)
+    starts = jnp.asarray(np.random.default_rng(1).integers(0, n, m), jnp.int32)
+    for q0 in (0.0, 1.0):
+        want, got = (np.asarray(construct_tours(jax.random.key(7), w, starts, q0,
+                                                candidates=nbr, fallback=p))
+                     for p in ("lazy", "kernel"))
+        assert _is_perm(got)
+        np.testing.assert_array_equal(got, want)
+    one = construct_tours(jax.random.key(7), w, starts[:1], 0.5, candidates=nbr,
+                          fallback="kernel")
+    np.testing.assert_array_equal(one, construct_tours(jax.random.key(7), w, starts[:1], 0.5,
+                                                       candidates=nbr, fallback="lazy"))
+
+
+@pytest.mark.skipif(jax.default_backend() != "gpu", reason="needs a GPU (Triton)")
+def test_kernel_plan_on_the_gpu_builds_the_scan_plans_tours():
+    """Compiled by Triton, the kernel builds the compact plan's tours for 4,096 ants on
+    pcb442 with chaos off and on."""
+    import eaco_jax as ea
+
+    p = ea.problems.get("pcb442")
+    w = choice_weights(jnp.ones((p.n, p.n)), heuristic_log_eta(p.dist), 1.0, 2.0)
+    starts = jax.random.randint(jax.random.key(1), (4096,), 0, p.n, jnp.int32)
+    factor = jax.random.uniform(jax.random.key(2), (4096, p.n), minval=0.9, maxval=1.1)
+    for f in (None, factor):
+        a, b = (construct_tours(jax.random.key(3), w, starts, 0.1, None, f, p.neighbors, plan)
+                for plan in ("compact", "kernel"))
+        assert float(jnp.mean(jnp.all(a == b, axis=1))) == 1.0

@@ -345,13 +345,14 @@ def construct_tours(
         all tabu moves to the allowed node of largest weight (as ACOTSP does); the cost of a
         step drops from O(m n) sampling to O(m k). Without them Eq. 2 runs over all n nodes.
       fallback: how that whole-row search runs (static; every plan builds the same tours):
-        "auto" ("kernel" on a GPU with candidate lists, else :func:`fallback_plan`), "lazy" (a branch on steps where some
-        ant needs it, compacting up to FALLBACK_ANTS ants), "dense" (every ant's whole row on
-        every step), "backup" (a backup list of the BACKUP heaviest nodes per row first, then
-        the lazy compacted search for up to m // 16 ants), "compact" (see
-        :func:`_compact_step`), "kernel" (one Pallas kernel builds whole tours per block of
-        ants, :mod:`eaco_jax.ops.construction_kernel`; needs candidate lists; its prefix sums
-        round in another order, see there).
+        "auto" ("kernel" on a GPU with candidate lists, else :func:`fallback_plan`), "lazy"
+        (a branch on steps where some ant needs it, compacting up to FALLBACK_ANTS ants),
+        "dense" (every ant's whole row on every step), "backup" (a backup list of the BACKUP
+        heaviest nodes per row first, then the lazy compacted search for up to m // 16 ants),
+        "compact" (see :func:`_compact_step`), "kernel" (one Pallas kernel builds whole tours
+        per block of ants, :mod:`eaco_jax.ops.construction_kernel`; needs candidate lists; a
+        GPU runs it compiled, other backends in Pallas' interpreter, slowly; its prefix sums
+        add in another order, see there).
 
     Returns:
       (m, n) int32 tours, each a permutation of 0..n-1 starting at ``starts``.
@@ -394,8 +395,7 @@ def construct_tours(
         return construction_kernel.construct_tours_kernel(
             uniforms, weights, starts, q0, row_offset, factor, cands, cand_w, bk_node, bk_ok,
             _pack_bits(alive), backup=0 if bk_node is None else backup,
-            block=construction_kernel.BLOCK,
-            variant=tuple(sorted(construction_kernel.VARIANT.items())))
+            block=construction_kernel.BLOCK)
     if plan is None:
         step = _compact_step(weights, row_offset.astype(jnp.int32), q0, factor,
                              jnp.asarray(candidates, jnp.int32), uniforms,

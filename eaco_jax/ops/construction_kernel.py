@@ -11,11 +11,14 @@ uniform, and writes one path entry and one tabu word. Nothing waits on the host.
 The rule is that of every other plan (see ``construct_tours``): Eq. 2 and the q0 rule on the
 candidates that are not tabu, else the first allowed node of the row's backup list, else the
 allowed node of largest weight in the whole row (ACOTSP's rule), the first allowed node when
-all those weights are 0; the uniforms are the same draws. The candidates' prefix sums are
+all those weights are 0; the uniforms are the same draws. The fallbacks serve one pending ant
+at a time, its backup list or row spread over the program's threads, so they cost in
+proportion to the ants that need them (vectorised over the block they were 10-25x slower:
+``experiments/results/gpu/tsp_kernel_variants_h100.json``). The candidates' prefix sums are
 added one candidate after another here (the scan plans use a small matmul), so a sampled node
-can differ only where a draw falls within a rounding step of a boundary; with weights whose
-sums are exact in float32 the tours are those of every other plan (tests). Greedy choices,
-the backup lists and the whole-row rule are exact integer maxima and agree always.
+could differ where a draw falls within a rounding step of a boundary; the tests find the
+tours of every other plan (CPU, and 4,096 pr1002 tours on an H100). Greedy choices, the
+backup lists and the whole-row rule are exact integer maxima and agree always.
 
 Runs as a Triton kernel on a GPU; elsewhere in Pallas' interpreter (slow: for tests).
 """
@@ -30,13 +33,9 @@ from jax.experimental import pallas as pl
 
 Array = jax.Array
 
-#: ants per program (a power of 2); 4 warps give one ant per thread at 128
+#: ants per program (a power of 2 >= 16; one warp per 32 ants, one ant per thread): 32 was
+#: fastest at 4,096 ants of pr1002 on an H100, 2.7x 128 (results/gpu/tsp_kernel_variants_h100.json)
 BLOCK = 32
-#: whole-row fallback: columns per tile of its running maximum (a power of 2)
-ROW_TILE = 128
-#: how the fallbacks run (profiling): backup "unrolled" | "tile" | "serial" | "skip";
-#: whole row "tile" | "serial" | "skip" ("skip" builds wrong tours: timing only)
-VARIANT = {"backup": "serial", "whole_row": "serial"}
 
 
 def _key_bits(width: int) -> int:
@@ -86,29 +85,6 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
     def factor_of(node: Array) -> Array:
         return factor_ref[ants * n + node]
 
-    def whole_row(current: Array, left: Array) -> Array:
-        """ACOTSP's rule for ants ``left``: allowed node of largest weight, else first allowed."""
-        base = (offset + current) * n
-
-        def tile(t, carry):
-            best_key, first = carry
-            col = t * ROW_TILE + jnp.arange(ROW_TILE, dtype=jnp.int32)[None, :]
-            inside = (col < n) & left[:, None]
-            node = jnp.minimum(col, n - 1)
-            alive = _allowed(bits_ref, word_base[:, None], node) & inside
-            w = jnp.where(alive, w_ref[base[:, None] + node], 0.0)
-            if has_factor:
-                w = w * factor_ref[ants[:, None] * n + node]
-            key = jnp.where(alive, _packed_key(w, node, row_bits), 0)
-            best_key = jnp.maximum(best_key, jnp.max(key, axis=1))
-            first = jnp.minimum(first, jnp.min(jnp.where(alive, node, n), axis=1))
-            return best_key, first
-
-        init = (jnp.zeros((block,), jnp.int32), jnp.full((block,), n, jnp.int32))
-        best_key, first = jax.lax.fori_loop(0, -(-n // ROW_TILE), tile, init)
-        ok = (best_key >> row_bits) > 0
-        return jnp.where(ok, best_key & ((1 << row_bits) - 1), jnp.minimum(first, n - 1))
-
     lane = jnp.arange(block, dtype=jnp.int32)
     row_width = 1 << max(0, (n - 1).bit_length())
 
@@ -116,8 +92,9 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
         """Entry ``a`` of a per-lane vector, as a scalar."""
         return jnp.sum(jnp.where(lane == a, vec, 0))
 
-    def whole_row_serial(current: Array, left: Array, nxt: Array) -> Array:
-        """The whole-row rule one left ant at a time, its row spread over the block."""
+    def whole_row(current: Array, left: Array, nxt: Array) -> Array:
+        """The whole-row rule for ants ``left``, one at a time, its row spread over the block's
+        threads: the cost follows the number of such ants, not block x n."""
         cols = jnp.arange(row_width, dtype=jnp.int32)
         node = jnp.minimum(cols, n - 1)
 
@@ -137,17 +114,9 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
 
         return jax.lax.while_loop(lambda c: _any(c[1]), body, (nxt, left))[0]
 
-    def backup_tile(row: Array, nxt: Array, pending: Array):
-        j = jnp.arange(backup, dtype=jnp.int32)[None, :]
-        idx = row[:, None] * backup + j
-        bk = bk_node_ref[idx]
-        valid = (bk_ok_ref[idx] != 0) & _allowed(bits_ref, word_base[:, None], bk)
-        first = jnp.min(jnp.where(valid, j, backup), axis=1)
-        best = jnp.sum(jnp.where(j == first[:, None], bk, 0), axis=1)
-        found = first < backup
-        return jnp.where(pending & found, best, nxt), pending & ~found
-
-    def backup_serial(row: Array, nxt: Array, pending: Array):
+    def backup_list(row: Array, nxt: Array, pending: Array):
+        """The first allowed node of the backup list for ants ``pending``, one at a time (the
+        list spread over the block's threads); ants whose list is all tabu stay pending."""
         j = jnp.arange(backup, dtype=jnp.int32)
 
         def body(carry):
@@ -201,34 +170,8 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
             nxt = jnp.where(choice == j, nodes[j], nxt)
         pending = ~ok
         if backup:
-            def backup_list(nxt_pending):
-                nxt, pending = nxt_pending
-                found = jnp.zeros((block,), bool)
-                best = nxt
-                for j in reversed(range(backup)):  # the first allowed entry wins
-                    node = bk_node_ref[row * backup + j]
-                    valid = (bk_ok_ref[row * backup + j] != 0) & _allowed(bits_ref, word_base,
-                                                                           node)
-                    best = jnp.where(valid, node, best)
-                    found = found | valid
-                return jnp.where(pending & found, best, nxt), pending & ~found
-
-            kind = VARIANT["backup"]
-            if kind == "unrolled":
-                nxt, pending = jax.lax.cond(_any(pending), backup_list, lambda c: c,
-                                            (nxt, pending))
-            elif kind == "tile":
-                nxt, pending = jax.lax.cond(_any(pending), lambda c: backup_tile(row, *c),
-                                            lambda c: c, (nxt, pending))
-            elif kind == "serial":
-                nxt, pending = backup_serial(row, nxt, pending)
-        kind = VARIANT["whole_row"]
-        if kind == "tile":
-            nxt = jax.lax.cond(_any(pending),
-                               lambda: jnp.where(pending, whole_row(current, pending), nxt),
-                               lambda: nxt)
-        elif kind == "serial":
-            nxt = whole_row_serial(current, pending, nxt)
+            nxt, pending = backup_list(row, nxt, pending)
+        nxt = whole_row(current, pending, nxt)
         word = bits_ref[word_base + (nxt >> 5)]
         bits_ref[word_base + (nxt >> 5)] = word & ~(jnp.uint32(1) << (nxt & 31).astype(
             jnp.uint32))
@@ -243,12 +186,12 @@ def kernel_backend_ok() -> bool:
     return jax.default_backend() == "gpu"
 
 
-@functools.partial(jax.jit, static_argnames=("backup", "block", "interpret", "variant"))
+@functools.partial(jax.jit, static_argnames=("backup", "block", "interpret"))
 def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: Array,
                            row_offset: Array, factor: Array | None, candidates: Array,
                            cand_w: Array, bk_node: Array | None, bk_ok: Array | None,
                            alive_bits: Array, *, backup: int, block: int = BLOCK,
-                           interpret: bool | None = None, variant: tuple = ()) -> Array:
+                           interpret: bool | None = None) -> Array:
     """(m, n) tours from the tables of ``construction._candidate_tables``.
 
     ``uniforms`` (n - 1, m): the draw of each tour position and ant; ``cand_w`` (R, k) the
