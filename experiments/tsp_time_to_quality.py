@@ -14,6 +14,7 @@ process at a time: pin with ``taskset -c N`` and compare on the same core. Write
     taskset -c 1 python experiments/tsp_time_to_quality.py --instances pcb442 a280 \\
         --seconds 10 --checkpoints 1 3 10 --acotsp ~/ACOTSP/acotsp        # CPU, one core
     python experiments/tsp_time_to_quality.py --ants 4096 --data-dir DIR  # GPU
+    python experiments/tsp_time_to_quality.py --tables results/gpu/tsp_time_to_quality_h100_*.json
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from evidence_stats import t_ci  # noqa: E402
 from tsp_bench_common import (  # noqa: E402
     best_at,
     device_info,
@@ -83,10 +85,37 @@ def summarize(traces: list[list], optimum: float, checkpoints: list[float],
             b = best_at(tr, t - (offsets[i] if offsets else 0.0))
             if b is not None:
                 gaps.append(100.0 * (b / optimum - 1.0))
-        out[str(t)] = {"mean_gap_percent": statistics.mean(gaps)
-                       if len(gaps) == len(traces) else None,
+        full = len(gaps) == len(traces)
+        out[str(t)] = {"mean_gap_percent": statistics.mean(gaps) if full else None,
+                       "ci95_percent": list(t_ci(gaps)) if full and len(gaps) > 1 else None,
                        "runs_with_result": len(gaps)}
     return out
+
+
+def tables(paths: list[Path]) -> None:
+    """Markdown rows (mean gap and 95% CI at each checkpoint, after compilation and from the
+    call) recomputed from the traces of stored result files: the README's tables."""
+    for path in paths:
+        data = json.loads(path.read_text())
+        checkpoints = [float(t) for t in data["rows"][0]["after_compile"]]
+        print(f"{path.name} ({data['info']['device']}, jax {data['info']['jax']})")
+        for r in data["rows"]:
+            traces = [run["trace"] for run in r["runs"]]
+            offsets = [run.get("compile_seconds", 0.0) for run in r["runs"]]
+            for label, summ in (("after compile", summarize(traces, r["optimum"], checkpoints)),
+                                ("from the call", summarize(traces, r["optimum"], checkpoints,
+                                                            offsets))):
+                cells = []
+                for t in checkpoints:
+                    c = summ[str(t)]
+                    if c["mean_gap_percent"] is None:
+                        cells.append(f"– ({c['runs_with_result']} of {len(traces)} runs)")
+                    else:
+                        lo, hi = c["ci95_percent"]
+                        cells.append(f"{c['mean_gap_percent']:.3f}% [{lo:.3f}, {hi:.3f}]")
+                row = " | ".join(f"@{t:g} s {c}"
+                                 for t, c in zip(checkpoints, cells, strict=True))
+                print(f"| {r['instance']} | {r['solver']} | {label} | {row} |")
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -136,7 +165,12 @@ def main() -> None:
     ap.add_argument("--data-dir", type=Path, action="append")
     ap.add_argument("--cache-dir", type=Path, default=Path("out/jax_cache"))
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--tables", type=Path, nargs="+",
+                    help="print the README's rows from stored result files and stop")
     args = ap.parse_args()
+    if args.tables:
+        tables(args.tables)
+        return
     enable_compile_cache(args.cache_dir)
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
