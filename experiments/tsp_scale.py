@@ -1,7 +1,10 @@
 """Tours per second against colony size, without local search (issue 15, item 1).
 
-For each instance and colony size (``--ants``, default 1k-64k) and each construction fallback
-plan (``--fallbacks``; every plan builds the same tours, see ``construction.construct_tours``):
+For each instance and colony size (``--ants``, default 1k-64k) and each construction plan
+(``--fallbacks``: the scan plans ``lazy dense backup compact``, the Pallas ``kernel`` and
+``kernelB`` for B ants per program, or ``auto``; every plan builds the same tours, see
+``construction.construct_tours``; each row records the share of its tours identical to the
+first plan's, from the same draws):
 
 * the colony: ``eaco_jax.minimize(problem, GraphEACO(num_ants=m, local_search="none"),
   iterations=--iterations)``; tours/s = m / seconds per iteration after compilation
