@@ -236,6 +236,11 @@ def test_every_fallback_plan_builds_the_same_tours(chaos_on, backup, div, monkey
                         fallback="sometimes")
     with pytest.raises(ValueError, match="kernel.*candidate lists"):
         construct_tours(jax.random.key(4), stacked, starts, fallback="kernel")
+    big = jax.ShapeDtypeStruct((2**31 // n + 64,), jnp.int32)  # traced only, never built
+    with pytest.raises(ValueError, match="int32.*fewer ants"):
+        jax.eval_shape(lambda s: construct_tours(jax.random.key(4), stacked, s,
+                                                 candidates=jnp.asarray(nbr), fallback="kernel"),
+                       big)
 
 
 def test_compaction_is_nonzero():

@@ -205,6 +205,9 @@ def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: A
     block = max(16, min(block, 1 << max(0, (m - 1).bit_length())))
     m_pad = -(-m // block) * block
     pad = m_pad - m
+    if max(n * m_pad, weights.shape[0] * n) >= 2**31:  # the kernel's flat int32 indices
+        raise ValueError(f"plan 'kernel' indexes ants x cities with int32: {m} ants x {n} "
+                         "cities is too many; use fewer ants or another construction plan")
 
     def padded(x, value):
         return jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1), constant_values=value)
