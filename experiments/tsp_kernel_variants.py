@@ -7,7 +7,7 @@ against plan "compact" from the same draws, and writes JSON:
     python experiments/tsp_kernel_variants.py --instances pr1002 --ants 4096 --blocks 32 128
 
 ``results/gpu/tsp_kernel_variants_h100.json`` also compares the kernel's fallback variants,
-measured at commit e608b43, which had them as a switch: backup lists unrolled over the block,
+measured at commit 6fcba9e, which had them as a switch: backup lists unrolled over the block,
 as (block, 64) tiles or one pending ant at a time; whole rows as (block, 128) tiles or one ant
 at a time ("skip": left out, wrong tours, to time the rest). The code keeps the fastest, one
 ant at a time for both.
