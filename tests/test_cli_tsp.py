@@ -59,3 +59,24 @@ def test_library_bugs_keep_their_traceback(monkeypatch):
     assert res.exit_code != 2 and isinstance(res.exception, TypeError)
     with pytest.raises(TypeError, match="a bug deep"):
         tsp.run(tsp.TspSettings(instance="burma14", iterations=1))
+
+
+def test_local_search_settings_reach_the_strategy(tmp_path):
+    """--local-search 2opt+oropt --ls-best-k 3 runs (ACOTSP-style search on the 3 best) and
+    is recorded; a k below 1 is a one-line error naming the setting."""
+    from eaco_jax.runs import tsp
+
+    settings = tsp.TspSettings("burma14", ants=8, iterations=4, local_search="2opt+oropt",
+                               ls_best_k=3)
+    built = tsp.build(settings)
+    assert built.strategy.local_search == "2opt+oropt" and built.strategy.ls_best_k == 3
+    res = CliRunner().invoke(app, ["tsp", "burma14", "--ants", "8", "--iterations", "4",
+                                   "--local-search", "2opt+oropt", "--ls-best-k", "3",
+                                   "--json"])
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.stdout.strip().splitlines()[-1])
+    assert record["local_search"] == "2opt+oropt" and record["ls_best_k"] == 3
+    assert sorted(record["tour"]) == list(range(14))
+    res = CliRunner().invoke(app, ["tsp", "burma14", "--ls-best-k", "0", "--json"])
+    assert res.exit_code == 2 and "ls_best_k" in res.stderr, res.output
+    assert len(res.stderr.strip().splitlines()) == 1
