@@ -31,6 +31,8 @@ import jax
 import jax.numpy as jnp
 from jax.experimental import pallas as pl
 
+from eaco_jax.ops.construction import _bit_allowed, _id_bits, _packed_keys
+
 Array = jax.Array
 
 #: ants per program (a power of 2 >= 16; one warp per 32 ants, one ant per thread): 32 was
@@ -38,25 +40,9 @@ Array = jax.Array
 BLOCK = 32
 
 
-def _key_bits(width: int) -> int:
-    return max(1, (width - 1).bit_length())
-
-
-def _packed_key(w: Array, col: Array, id_bits: int) -> Array:
-    """The int32 key of ``construction._packed_argmax``: weight bits high, column low."""
-    bits = jax.lax.bitcast_convert_type(w, jnp.int32)
-    return (bits & ~((1 << id_bits) - 1)) | col
-
-
 def _any(x: Array) -> Array:
     """Whether any entry is True (a max: Triton has no boolean reduction)."""
     return jnp.max(x.astype(jnp.int32)) > 0
-
-
-def _allowed(bits_ref, word_base: Array, node: Array) -> Array:
-    """Whether ``node`` is still to visit: bit ``node % 32`` of the ant's word ``node // 32``."""
-    word = bits_ref[word_base + (node >> 5)]
-    return ((word >> (node & 31).astype(jnp.uint32)) & 1) == 1
 
 
 def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, block: int,
@@ -77,8 +63,8 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
     word_base = ants * words
     offset = offset_ref[ants]
     q0 = q0_ref[ants]
-    cand_bits = _key_bits(k)
-    row_bits = _key_bits(n)
+    cand_bits = _id_bits(k)
+    row_bits = _id_bits(n)
     start = start_ref[ants]
     path_ref[ants] = start  # position 0 of the (n, m_pad) path
 
@@ -102,11 +88,11 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
             nxt, left = carry
             a = jnp.min(jnp.where(left, lane, block))
             ant = first_ant + a
-            alive = _allowed(bits_ref, ant * words, node) & (cols < n)
+            alive = _bit_allowed(bits_ref, ant * words, node) & (cols < n)
             w = jnp.where(alive, w_ref[(pick(offset, a) + pick(current, a)) * n + node], 0.0)
             if has_factor:
                 w = w * factor_ref[ant * n + node]
-            best_key = jnp.max(jnp.where(alive, _packed_key(w, node, row_bits), 0))
+            best_key = jnp.max(jnp.where(alive, _packed_keys(w, node, row_bits), 0))
             first = jnp.min(jnp.where(alive, node, n))
             best = jnp.where((best_key >> row_bits) > 0, best_key & ((1 << row_bits) - 1),
                              jnp.minimum(first, n - 1))
@@ -125,7 +111,7 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
             ant = first_ant + a
             idx = pick(row, a) * backup + j
             bk = bk_node_ref[idx]
-            valid = (bk_ok_ref[idx] != 0) & _allowed(bits_ref, ant * words, bk)
+            valid = (bk_ok_ref[idx] != 0) & _bit_allowed(bits_ref, ant * words, bk)
             first = jnp.min(jnp.where(valid, j, backup))
             best = jnp.sum(jnp.where(j == first, bk, 0))
             here = lane == a
@@ -145,10 +131,10 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
         total = jnp.zeros((block,), jnp.float32)
         for j in range(k):
             node = cand_ref[row * k + j]
-            w = jnp.where(_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
+            w = jnp.where(_bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
             if has_factor:
                 w = w * factor_of(node)
-            best_key = jnp.maximum(best_key, _packed_key(w, jnp.int32(j), cand_bits))
+            best_key = jnp.maximum(best_key, _packed_keys(w, jnp.int32(j), cand_bits))
             total = total + w
             nodes.append(node)
             weights.append(w)
