@@ -32,6 +32,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from tsp_bench_common import device_info, enable_compile_cache, find_instance  # noqa: E402
@@ -54,8 +55,21 @@ def peak_gbs(device: str) -> float | None:
     return None
 
 
-#: the kernel plan's ants per program unless the plan name says ("kernel64")
-DEFAULT_BLOCK = 32
+#: the library's ants per program of the kernel plan, before any "kernelB" row changed it
+_DEFAULT_BLOCK: list[int] = []
+
+
+def use_plan(name: str) -> tuple[str, int | None]:
+    """(construction plan, kernel block) of a plan name; "kernelB" sets the kernel's ants per
+    program to B for this row (its module constant), "kernel" restores the library's."""
+    if not name.startswith("kernel"):
+        return name, None
+    from eaco_jax.ops import construction_kernel
+
+    if not _DEFAULT_BLOCK:
+        _DEFAULT_BLOCK.append(construction_kernel.BLOCK)
+    construction_kernel.BLOCK = int(name[len("kernel"):] or _DEFAULT_BLOCK[0])
+    return "kernel", construction_kernel.BLOCK
 
 
 def memory_bytes(m: int, n: int, k: int) -> dict:
@@ -64,7 +78,7 @@ def memory_bytes(m: int, n: int, k: int) -> dict:
             "tours": 4 * m * n, "weights_stacked": 2 * 4 * n * n, "choice_info": 2 * 8 * n * k}
 
 
-def time_construction(problem, m: int, fallback: str, repeats: int) -> dict:
+def time_construction(problem, m: int, fallback: str, repeats: int) -> tuple[dict, Any]:
     """Median seconds of one jitted construction of m tours on the initial weights."""
     import jax
     import jax.numpy as jnp
@@ -79,15 +93,6 @@ def time_construction(problem, m: int, fallback: str, repeats: int) -> dict:
     fn = jax.jit(lambda key, w, starts, cand: construct_tours(key, w, starts, 0.0,
                                                               candidates=cand,
                                                               fallback=fallback))
-    kernel_block = None
-    if fallback.startswith("kernel"):  # "kernel64": the kernel plan, 64 ants per program
-        from eaco_jax.ops import construction_kernel
-
-        kernel_block = int(fallback[len("kernel"):] or DEFAULT_BLOCK)
-        construction_kernel.BLOCK = kernel_block
-        fn = jax.jit(lambda key, w, starts, cand: construct_tours(key, w, starts, 0.0,
-                                                                  candidates=cand,
-                                                                  fallback="kernel"))
     args = (w, starts, problem.neighbors)
     t0 = time.perf_counter()
     compiled = fn.lower(jax.random.key(0), *args).compile()
@@ -99,8 +104,8 @@ def time_construction(problem, m: int, fallback: str, repeats: int) -> dict:
         t0 = time.perf_counter()
         compiled(keys[i + 1], *args).block_until_ready()
         times.append(time.perf_counter() - t0)
-    return {"construct_seconds": statistics.median(times), "construct_compile_seconds": compile_s,
-            "kernel_block": kernel_block}, tours
+    return {"construct_seconds": statistics.median(times),
+            "construct_compile_seconds": compile_s}, tours
 
 
 def main() -> None:
@@ -146,10 +151,11 @@ def main() -> None:
             for fb in args.fallbacks:
                 row = {"instance": name, "n": n, "k": k, "ants": m, "fallback": fb}
                 try:
-                    timing, tours = time_construction(problem, m, fb, args.repeats)
+                    plan, row["kernel_block"] = use_plan(fb)
+                    timing, tours = time_construction(problem, m, plan, args.repeats)
                     row.update(timing)
                     # the plans' tours from the same draws: the share identical to the first
-                    # plan's (1.0 for the scan plans; the kernel's prefix sums round apart)
+                    # plan's (the kernel's prefix sums add in another order)
                     if reference is None:
                         reference = tours
                     row["same_tours_as_first_plan"] = float(
@@ -157,7 +163,7 @@ def main() -> None:
                     del tours
                     if not args.skip_colony:
                         strategy = GraphEACO(num_ants=m, local_search="none",
-                                             construction_fallback=fb.rstrip("0123456789"))
+                                             construction_fallback=plan)
                         res = minimize(problem, strategy, seed=0, iterations=args.iterations,
                                        chunk_size=max(1, args.iterations // 4))
                         row.update(colony_seconds_per_iteration=res.seconds_per_iteration,
