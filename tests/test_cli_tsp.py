@@ -80,3 +80,18 @@ def test_local_search_settings_reach_the_strategy(tmp_path):
     res = CliRunner().invoke(app, ["tsp", "burma14", "--ls-best-k", "0", "--json"])
     assert res.exit_code == 2 and "ls_best_k" in res.stderr, res.output
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_setting_choices_are_the_strategys():
+    """The settings list the strategy's names themselves (runs/tsp.py does not import the
+    strategy, and so jax, to print --help): the two lists must not drift apart."""
+    import dataclasses
+
+    from eaco_jax.runs import tsp
+    from eaco_jax.strategies import graph_eaco
+
+    choices = {f.name: f.metadata["choices"] for f in dataclasses.fields(tsp.TspSettings)}
+    assert choices["local_search"] == graph_eaco.LOCAL_SEARCHES
+    assert choices["preset"] == graph_eaco.PRESETS
+    assert choices["crossover"] == ("auto", *graph_eaco.CROSSOVERS)
+    assert choices["mutation"] == ("auto", *graph_eaco.MUTATIONS)
