@@ -123,6 +123,12 @@ def fallback_plan(m: int, n: int, backend: str | None = None) -> tuple[bool, int
     return False, 0, m
 
 
+def kernel_compiles_here() -> bool:
+    """Whether the construction kernel compiles natively on this backend (a GPU, as Triton);
+    elsewhere it runs in Pallas' interpreter, so "auto" does not pick it."""
+    return jax.default_backend() == "gpu"
+
+
 def _row_keys(rows: Array) -> Array:
     """The int32 packed keys of :func:`_packed_argmax` for whole rows (weight bits high,
     column low): their order is the order in which the whole-row fallback prefers nodes."""
@@ -384,7 +390,7 @@ def construct_tours(
         plan = None
     elif fallback == "compact":
         plan = plans["dense"]  # without candidate lists every step searches whole rows
-    elif fallback == "auto" and candidates is not None and jax.default_backend() == "gpu":
+    elif fallback == "auto" and candidates is not None and kernel_compiles_here():
         plan = "kernel"
     elif fallback == "auto":
         plan = fallback_plan(m, n)

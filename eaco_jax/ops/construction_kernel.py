@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 from jax.experimental import pallas as pl
 
-from eaco_jax.ops.construction import _bit_allowed, _id_bits, _packed_keys
+from eaco_jax.ops.construction import _bit_allowed, _id_bits, _packed_keys, kernel_compiles_here
 
 Array = jax.Array
 
@@ -67,9 +67,6 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
     row_bits = _id_bits(n)
     start = start_ref[ants]
     path_ref[ants] = start  # position 0 of the (n, m_pad) path
-
-    def factor_of(node: Array) -> Array:
-        return factor_ref[ants * n + node]
 
     lane = jnp.arange(block, dtype=jnp.int32)
     row_width = 1 << max(0, (n - 1).bit_length())
@@ -133,7 +130,7 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
             node = cand_ref[row * k + j]
             w = jnp.where(_bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
             if has_factor:
-                w = w * factor_of(node)
+                w = w * factor_ref[ants * n + node]
             best_key = jnp.maximum(best_key, _packed_keys(w, jnp.int32(j), cand_bits))
             total = total + w
             nodes.append(node)
@@ -165,11 +162,6 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
         return nxt
 
     jax.lax.fori_loop(1, n, step, start)
-
-
-def kernel_backend_ok() -> bool:
-    """Whether the kernel compiles natively here (a GPU); elsewhere it runs interpreted."""
-    return jax.default_backend() == "gpu"
 
 
 @functools.partial(jax.jit, static_argnames=("backup", "block", "interpret"))
@@ -210,7 +202,7 @@ def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: A
         args.append(padded(factor, 1.0).reshape(-1))
     args.append(bits.reshape(-1))
     if interpret is None:
-        interpret = not kernel_backend_ok()
+        interpret = not kernel_compiles_here()
     kernel = functools.partial(_kernel, n=n, k=k, words=words, backup=backup,
                                has_factor=has_factor, block=block, m_pad=m_pad)
     extra = {}
