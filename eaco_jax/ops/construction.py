@@ -21,6 +21,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from eaco_jax.ops.packed_keys import bit_allowed, id_bits, packed_keys
+
 Array = jax.Array
 #: construction steps per loop iteration of the compiled scan (fewer loop round-trips on CPU)
 UNROLL = 2
@@ -58,26 +60,14 @@ def heuristic_log_eta(dist: Array) -> Array:
     return jnp.where(jnp.eye(n, dtype=bool), -jnp.inf, log_eta)
 
 
-def _id_bits(width: int) -> int:
-    """Low bits a packed key keeps for a column index below ``width``."""
-    return max(1, (width - 1).bit_length())
-
-
-def _packed_keys(score: Array, col: Array, id_bits: int) -> Array:
-    """int32 keys ordering non-negative float scores, ties by column: the float's bits
-    (monotonic for non-negative floats) high, the column ``col`` in the ``id_bits`` low bits.
-    The one key of every greedy and fallback choice (the scan plans and the kernel)."""
-    bits = jax.lax.bitcast_convert_type(score, jnp.int32)
-    return (bits & ~((1 << id_bits) - 1)) | col
-
-
 def _packed_argmax(score: Array) -> tuple[Array, Array]:
     """(argmax, max > 0) of non-negative float scores along the last axis as ONE int32 max of
-    :func:`_packed_keys` (XLA:CPU's variadic argmax reduce is several times slower)."""
+    :func:`~eaco_jax.ops.packed_keys.packed_keys` (XLA:CPU's variadic argmax reduce is several
+    times slower)."""
     width = score.shape[-1]
-    id_bits = _id_bits(width)
-    best = jnp.max(_packed_keys(score, jnp.arange(width, dtype=jnp.int32), id_bits), axis=-1)
-    return best & ((1 << id_bits) - 1), (best >> id_bits) > 0
+    low = id_bits(width)
+    best = jnp.max(packed_keys(score, jnp.arange(width, dtype=jnp.int32), low), axis=-1)
+    return best & ((1 << low) - 1), (best >> low) > 0
 
 
 def _sample(w: Array, u: Array, q0: Array) -> tuple[Array, Array]:
@@ -133,7 +123,7 @@ def _row_keys(rows: Array) -> Array:
     """The int32 packed keys of :func:`_packed_argmax` for whole rows (weight bits high,
     column low): their order is the order in which the whole-row fallback prefers nodes."""
     width = rows.shape[-1]
-    return _packed_keys(rows, jnp.arange(width, dtype=jnp.int32), _id_bits(width))
+    return packed_keys(rows, jnp.arange(width, dtype=jnp.int32), id_bits(width))
 
 
 def _backup_lists(weights: Array, size: int) -> tuple[Array, Array]:
@@ -142,8 +132,8 @@ def _backup_lists(weights: Array, size: int) -> tuple[Array, Array]:
     of these nodes is allowed, the first allowed one IS that node (exact, same ties), so only
     ants with all of them tabu need the whole row. One top_k over (R, n) per construction."""
     keys, _ = jax.lax.top_k(_row_keys(weights), size)
-    id_bits = _id_bits(weights.shape[1])
-    return keys & ((1 << id_bits) - 1), (keys >> id_bits) > 0
+    low = id_bits(weights.shape[1])
+    return keys & ((1 << low) - 1), (keys >> low) > 0
 
 
 def _whole_row_best(weights: Array, row_offset: Array, factor: Array | None, ants: Array,
@@ -187,14 +177,7 @@ def _unpack_bits(bits: Array, n: int) -> Array:
 
 def _test_bits(bits: Array, ants: Array, nodes: Array) -> Array:
     """Whether ``nodes`` (A, k) are still to visit for ``ants`` (A,): one word gather each."""
-    return _bit_allowed(bits.reshape(-1), ants[:, None] * bits.shape[1], nodes)
-
-
-def _bit_allowed(flat_bits, word_base: Array, node: Array) -> Array:
-    """Whether ``node`` is still to visit: bit ``node % 32`` of word ``word_base + node // 32``
-    of a flat tabu bit mask (an array, or the construction kernel's Pallas ref)."""
-    word = flat_bits[word_base + (node >> 5)]
-    return ((word >> (node & 31).astype(jnp.uint32)) & 1) == 1
+    return bit_allowed(bits.reshape(-1), ants[:, None] * bits.shape[1], nodes)
 
 
 def _compact(mask: Array, size: int, fill: int) -> Array:
@@ -414,7 +397,7 @@ def construct_tours(
         return construction_kernel.construct_tours_kernel(
             uniforms, weights, starts, q0, row_offset, factor, cands, cand_w, bk_node, bk_ok,
             _pack_bits(alive), backup=0 if bk_node is None else backup,
-            block=construction_kernel.BLOCK)
+            interpret=not kernel_compiles_here(), block=construction_kernel.BLOCK)
     if plan is None:
         step = _compact_step(weights, row_offset.astype(jnp.int32), q0, factor,
                              jnp.asarray(candidates, jnp.int32), uniforms,

@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 from jax.experimental import pallas as pl
 
-from eaco_jax.ops.construction import _bit_allowed, _id_bits, _packed_keys, kernel_compiles_here
+from eaco_jax.ops.packed_keys import bit_allowed, id_bits, packed_keys
 
 Array = jax.Array
 
@@ -63,8 +63,8 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
     word_base = ants * words
     offset = offset_ref[ants]
     q0 = q0_ref[ants]
-    cand_bits = _id_bits(k)
-    row_bits = _id_bits(n)
+    cand_bits = id_bits(k)
+    row_bits = id_bits(n)
     start = start_ref[ants]
     path_ref[ants] = start  # position 0 of the (n, m_pad) path
 
@@ -85,11 +85,11 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
             nxt, left = carry
             a = jnp.min(jnp.where(left, lane, block))
             ant = first_ant + a
-            alive = _bit_allowed(bits_ref, ant * words, node) & (cols < n)
+            alive = bit_allowed(bits_ref, ant * words, node) & (cols < n)
             w = jnp.where(alive, w_ref[(pick(offset, a) + pick(current, a)) * n + node], 0.0)
             if has_factor:
                 w = w * factor_ref[ant * n + node]
-            best_key = jnp.max(jnp.where(alive, _packed_keys(w, node, row_bits), 0))
+            best_key = jnp.max(jnp.where(alive, packed_keys(w, node, row_bits), 0))
             first = jnp.min(jnp.where(alive, node, n))
             best = jnp.where((best_key >> row_bits) > 0, best_key & ((1 << row_bits) - 1),
                              jnp.minimum(first, n - 1))
@@ -108,7 +108,7 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
             ant = first_ant + a
             idx = pick(row, a) * backup + j
             bk = bk_node_ref[idx]
-            valid = (bk_ok_ref[idx] != 0) & _bit_allowed(bits_ref, ant * words, bk)
+            valid = (bk_ok_ref[idx] != 0) & bit_allowed(bits_ref, ant * words, bk)
             first = jnp.min(jnp.where(valid, j, backup))
             best = jnp.sum(jnp.where(j == first, bk, 0))
             here = lane == a
@@ -128,10 +128,10 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
         total = jnp.zeros((block,), jnp.float32)
         for j in range(k):
             node = cand_ref[row * k + j]
-            w = jnp.where(_bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
+            w = jnp.where(bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
             if has_factor:
                 w = w * factor_ref[ants * n + node]
-            best_key = jnp.maximum(best_key, _packed_keys(w, jnp.int32(j), cand_bits))
+            best_key = jnp.maximum(best_key, packed_keys(w, jnp.int32(j), cand_bits))
             total = total + w
             nodes.append(node)
             weights.append(w)
@@ -168,8 +168,8 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
 def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: Array,
                            row_offset: Array, factor: Array | None, candidates: Array,
                            cand_w: Array, bk_node: Array | None, bk_ok: Array | None,
-                           alive_bits: Array, *, backup: int, block: int = BLOCK,
-                           interpret: bool | None = None) -> Array:
+                           alive_bits: Array, *, backup: int, interpret: bool,
+                           block: int = BLOCK) -> Array:
     """(m, n) tours from the tables of ``construction._candidate_tables``.
 
     ``uniforms`` (n - 1, m): the draw of each tour position and ant; ``cand_w`` (R, k) the
@@ -201,8 +201,6 @@ def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: A
     if has_factor:
         args.append(padded(factor, 1.0).reshape(-1))
     args.append(bits.reshape(-1))
-    if interpret is None:
-        interpret = not kernel_compiles_here()
     kernel = functools.partial(_kernel, n=n, k=k, words=words, backup=backup,
                                has_factor=has_factor, block=block, m_pad=m_pad)
     extra = {}
