@@ -1,4 +1,4 @@
-"""Tour improvement by 2-opt, batched over the colony.
+"""Tour improvement by 2-opt (and Or-opt), batched over the colony.
 
 Each tour is improved by a ``lax.while_loop`` of improvement steps, ``vmap``-ed over the ants,
 so one call polishes the whole colony without Python loops.
@@ -18,6 +18,11 @@ One step on one tour:
    ``moves_per_step=1`` is classic best-improvement 2-opt; the batch cuts the number of
    steps (the vmapped loop runs as long as its slowest ant) about 2-3x at the same quality.
 
+With ``or_opt=True`` ("Or-2opt") each city also proposes its best Or-opt move (a segment of
+1-3 cities with the city at one end, moved next to one of its candidates, either
+orientation); such a move is a rotation of a position range, so it joins the same greedy
+disjoint batch as the reversals (:func:`_apply_disjoint`, :func:`_or_opt_moves`).
+
 Only strictly positive gains are applied; with integer distances held exactly in float32 the
 loop ends at a 2-opt local optimum (w.r.t. the candidate lists), or after ``max_moves`` moves.
 Without ``neighbors`` every city is a candidate of every other (``k = n - 1``), the full
@@ -35,8 +40,11 @@ import jax.numpy as jnp
 
 Array = jax.Array
 
+#: Or-opt moves segments of 1..OR_OPT_MAX cities
+OR_OPT_MAX = 3
 
-def _check(tours: Array, dist: Array, neighbors: Array | None) -> None:
+
+def _check(tours: Array, dist: Array, neighbors: Array | None, or_opt: bool = False) -> None:
     if tours.ndim != 2:
         raise ValueError(f"tours must have shape (m, n), got {tours.shape}")
     n = tours.shape[1]
@@ -46,6 +54,8 @@ def _check(tours: Array, dist: Array, neighbors: Array | None) -> None:
         )
     if n < 4:
         raise ValueError(f"local search needs at least 4 cities, got {n}")
+    if or_opt and n < 2 * OR_OPT_MAX + 2:
+        raise ValueError(f"Or-opt needs at least {2 * OR_OPT_MAX + 2} cities, got {n}")
     if neighbors is not None and (neighbors.ndim != 2 or neighbors.shape[0] != n):
         raise ValueError(f"neighbors must have shape ({n}, k), got {neighbors.shape}")
 
@@ -63,43 +73,146 @@ def _default_max_moves(n: int, max_moves: int | None) -> int:
     return 4 * n if max_moves is None else int(max_moves)
 
 
-def _apply_disjoint(
-    tour: Array, pos: Array, gain: Array, lo: Array, hi: Array, top: int, budget: Array
-) -> tuple[Array, Array, Array]:
-    """Apply several improving reversals at once, greedily by gain, if they touch disjoint edges.
+#: move kinds of the batched search: reverse [lo, hi]; rotate [lo, hi] so that its first
+#: ``span`` positions go to its end; ... so that its last ``span`` positions go to its front
+REVERSE, SEGMENT_TO_END, SEGMENT_TO_FRONT = 1, 2, 3
 
-    ``gain``/``lo``/``hi`` describe one candidate move per city: reverse ``tour[lo..hi]``
-    (``1 <= lo < hi <= n - 1``), removing edges ``lo-1`` and ``hi`` (edge ``e`` joins positions
-    ``e`` and ``e + 1``). Of the ``top`` best, a move is accepted when its edge range
-    ``[lo-1, hi]`` is disjoint from every better accepted one; such reversals commute and their
-    gains add up, so all of them are applied in one O(n) pass. Returns (tour, pos, applied).
+
+def _apply_disjoint(
+    tour: Array,
+    pos: Array,
+    gain: Array,
+    lo: Array,
+    hi: Array,
+    top: int,
+    budget: Array,
+    kind: Array | None = None,
+    span: Array | None = None,
+    rev: Array | None = None,
+) -> tuple[Array, Array, Array]:
+    """Apply several improving moves at once, greedily by gain, if they touch disjoint edges.
+
+    ``gain``/``lo``/``hi`` describe one candidate move per entry on the positions
+    ``[lo, hi]`` (``0 <= lo < hi <= n - 1``), removing edges in ``[lo - 1, hi]`` only (edge
+    ``e`` joins positions ``e`` and ``e + 1``; edge ``-1`` is edge ``n - 1``). ``kind`` (default
+    all :data:`REVERSE`): reverse ``[lo, hi]`` (2-opt), or move the segment of ``span``
+    positions at its front to its end / at its end to its front, reversed where ``rev``
+    (Or-opt). Of the ``top`` best, a move is accepted when its edge range is disjoint from
+    every better accepted one; such moves commute and their gains add up, so all of them are
+    applied in one O(n) pass. Returns (tour, pos, applied).
     """
     n = tour.shape[0]
-    top = min(top, n)
+    top = min(top, gain.shape[0])
     top_g, top_i = jax.lax.top_k(gain, top)
     tl, th = lo[top_i], hi[top_i]
     overlap = (tl[:, None] - 1 <= th[None, :]) & (tl[None, :] - 1 <= th[:, None])
+    # a range starting at 0 removes edge n - 1, which a range ending at n - 1 also removes
+    overlap = overlap | ((tl[:, None] == 0) & (th[None, :] == n - 1))
+    overlap = overlap | ((tl[None, :] == 0) & (th[:, None] == n - 1))
 
     def accept(t, acc):
         ok = (top_g[t] > 0) & ~jnp.any(acc & overlap[t]) & (acc.sum() < budget)
         return acc.at[t].set(ok)
 
     acc = jax.lax.fori_loop(0, top, accept, jnp.zeros(top, bool))
-    # piecewise reflection p -> lo + hi - p inside each accepted [lo, hi], via prefix sums
-    w = jnp.where(acc, tl + th, 0)
     one = acc.astype(jnp.int32)
-    mirror = jnp.zeros(n + 1, jnp.int32).at[tl].add(w).at[th + 1].add(-w).cumsum()[:n]
-    inside = jnp.zeros(n + 1, jnp.int32).at[tl].add(one).at[th + 1].add(-one).cumsum()[:n] > 0
     idx = jnp.arange(n, dtype=jnp.int32)
-    tour = tour[jnp.where(inside, mirror - idx, idx)]
-    pos = jnp.where(inside[pos], mirror[pos] - pos, pos)
-    return tour, pos, one.sum()
+    if kind is None:  # reversals only: the piecewise reflection p -> lo + hi - p
+        w = jnp.where(acc, tl + th, 0)
+        mirror = jnp.zeros(n + 1, jnp.int32).at[tl].add(w).at[th + 1].add(-w).cumsum()[:n]
+        inside = jnp.zeros(n + 1, jnp.int32).at[tl].add(one).at[th + 1].add(-one).cumsum()[:n]
+        inside = inside > 0
+        tour = tour[jnp.where(inside, mirror - idx, idx)]
+        pos = jnp.where(inside[pos], mirror[pos] - pos, pos)
+        return tour, pos, one.sum()
+    # the accepted move (if any) that owns each position, by a prefix sum over the ranges
+    label = jnp.where(acc, jnp.arange(1, top + 1, dtype=jnp.int32), 0)
+    owner = jnp.zeros(n + 1, jnp.int32).at[tl].add(label).at[th + 1].add(-label).cumsum()[:n]
+    inside = owner > 0
+    o = jnp.maximum(owner - 1, 0)
+    a, b = tl[o], th[o]
+    kd = jnp.where(inside, kind[top_i][o], 0)
+    ln, rv = span[top_i][o], rev[top_i][o]
+
+    def seg(j):  # offset inside a moved segment, reversed where rev
+        return jnp.where(rv, ln - 1 - j, j)
+
+    # new position p takes the city of old position src[p]
+    src = jnp.where(kd == REVERSE, a + b - idx, idx)
+    src = jnp.where((kd == SEGMENT_TO_END) & (idx <= b - ln), idx + ln, src)
+    src = jnp.where((kd == SEGMENT_TO_END) & (idx > b - ln), a + seg(idx - (b - ln + 1)), src)
+    src = jnp.where((kd == SEGMENT_TO_FRONT) & (idx >= a + ln), idx - ln, src)
+    src = jnp.where((kd == SEGMENT_TO_FRONT) & (idx < a + ln), b - ln + 1 + seg(idx - a), src)
+    # old position q goes to dst[q]
+    dst = jnp.where(kd == REVERSE, a + b - idx, idx)
+    dst = jnp.where((kd == SEGMENT_TO_END) & (idx < a + ln), b - ln + 1 + seg(idx - a), dst)
+    dst = jnp.where((kd == SEGMENT_TO_END) & (idx >= a + ln), idx - ln, dst)
+    dst = jnp.where((kd == SEGMENT_TO_FRONT) & (idx > b - ln), a + seg(idx - (b - ln + 1)), dst)
+    dst = jnp.where((kd == SEGMENT_TO_FRONT) & (idx <= b - ln), idx + ln, dst)
+    return tour[src], dst[pos], one.sum()
+
+
+def _or_opt_moves(
+    tour: Array, pos: Array, succ: Array, pred: Array, dist: Array, cand: Array, cand_d: Array
+) -> tuple[Array, ...]:
+    """The best Or-opt move at every city ``a``: (gain, lo, hi, kind, span, rev), one per city.
+
+    The segments of 1..:data:`OR_OPT_MAX` cities with ``a`` at one end are moved next to a
+    candidate ``c2`` of ``a`` (between ``c2`` and its successor or predecessor, in the
+    orientation that makes ``(a, c2)`` an edge): the moves of the don't-look-bit search,
+    evaluated at all cities at once. Each move is written on the one of its two equivalent
+    position ranges that does not wrap around the tour's end (the segment moved forward to
+    its new place, or the rest of the cycle moved behind it); the few moves of a segment that
+    straddles the array's end (positions ``n - 1`` and ``0``) have no such range and are
+    left out (gain ``-inf``).
+    """
+    n, k = cand.shape
+    cities = jnp.arange(n, dtype=jnp.int32)
+    lens = jnp.array([1, 2, 3, 2, 3], jnp.int32)[: 2 * OR_OPT_MAX - 1]
+    back = jnp.arange(lens.shape[0]) >= OR_OPT_MAX
+    sa = jnp.where(back, pos[:, None] - lens + 1, pos[:, None]) % n  # (n, S) segment start
+    first, last = tour[sa], tour[(sa + lens - 1) % n]
+    pp, ss = tour[(sa - 1) % n], tour[(sa + lens) % n]
+    g_rem = dist[pp, first] + dist[last, ss] - dist[pp, ss]  # (n, S)
+    other = jnp.where(back, first, last)[:, :, None]  # the segment's end away from a
+    q = (pos[cand][:, None, :] - sa[:, :, None]) % n  # (n, S, k) c2 relative to the segment
+    in_seg = q < lens[None, :, None]
+    sc, pc = succ[cand][:, None, :], pred[cand][:, None, :]
+    dc = cand_d[:, None, :]
+    # after c2: c2 - a .. other - succ c2; before c2: pred c2 - other .. a - c2
+    g_after = dist[cand, succ[cand]][:, None, :] - dc - dist[other, sc]
+    g_before = dist[pred[cand], cand][:, None, :] - dc - dist[pc, other]
+    ok_after = ~in_seg & (q != n - 1)  # c2 == pp is the segment's own place
+    ok_before = ~in_seg & (q != lens[None, :, None])  # and so is c2 == ss
+    g = jnp.stack([jnp.where(ok_after, g_rem[..., None] + g_after, -jnp.inf),
+                   jnp.where(ok_before, g_rem[..., None] + g_before, -jnp.inf)], axis=-1)
+    flat = jnp.argmax(g.reshape(n, -1), axis=1).astype(jnp.int32)
+    gain = jnp.take_along_axis(g.reshape(n, -1), flat[:, None], axis=1)[:, 0]
+    si, hc, side = flat // (2 * k), (flat // 2) % k, flat % 2
+    span, start = lens[si], sa[cities, si]
+    t = q[cities, si, hc] - side  # insert after relative position t, span <= t <= n - 2
+    # forward segment (a first): after c2 keeps its order, before c2 reverses it; backward
+    # segment (a last): the other way round
+    rev = jnp.where(back[si], side == 0, side == 1)
+    forward = start + t <= n - 1  # [start, start + t]: the segment goes to the range's end
+    lo = jnp.where(forward, start, start + t + 1 - n)  # else the rest goes behind it
+    hi = jnp.where(forward, start + t, start + span - 1)
+    kind = jnp.where(forward, SEGMENT_TO_END, SEGMENT_TO_FRONT)
+    gain = jnp.where(hi <= n - 1, gain, -jnp.inf)  # a segment across the array's end
+    return gain, lo, hi, kind, span, rev
 
 
 def _two_opt_one(
-    tour: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int, per_step: int
+    tour: Array,
+    dist: Array,
+    cand: Array,
+    cand_d: Array,
+    max_moves: int,
+    per_step: int,
+    or_opt: bool = False,
 ) -> tuple[Array, Array, Array]:
-    """2-opt of one tour with candidate lists (see module docstring): (tour, moves, steps)."""
+    """2-opt (and Or-opt) of one tour with candidate lists (see module docstring):
+    (tour, moves, steps)."""
     n = tour.shape[0]
     cities = jnp.arange(n, dtype=jnp.int32)
     pos0 = jnp.zeros(n, jnp.int32).at[tour].set(cities)
@@ -131,7 +244,19 @@ def _two_opt_one(
         wrap = lo == 0
         lo, hi = jnp.where(wrap, hi + 1, lo), jnp.where(wrap, n - 1, hi)
         gain = jnp.where(gain > 0, gain, -jnp.inf)
-        tour, pos, applied = _apply_disjoint(tour, pos, gain, lo, hi, per_step, max_moves - moves)
+        if or_opt:  # each city's best 2-opt move and its best Or-opt move compete
+            og, olo, ohi, okind, ospan, orev = _or_opt_moves(tour, pos, succ, pred, dist, cand,
+                                                             cand_d)
+            tour, pos, applied = _apply_disjoint(
+                tour, pos, jnp.concatenate([gain, jnp.where(og > 0, og, -jnp.inf)]),
+                jnp.concatenate([lo, olo]), jnp.concatenate([hi, ohi]), per_step,
+                max_moves - moves,
+                kind=jnp.concatenate([jnp.full(n, REVERSE, jnp.int32), okind]),
+                span=jnp.concatenate([jnp.zeros(n, jnp.int32), ospan]),
+                rev=jnp.concatenate([jnp.zeros(n, bool), orev]))
+        else:
+            tour, pos, applied = _apply_disjoint(tour, pos, gain, lo, hi, per_step,
+                                                 max_moves - moves)
         return tour, pos, moves + applied, steps + 1, applied == 0
 
     def cond(carry):
@@ -145,7 +270,7 @@ def _two_opt_one(
     return tour, moves, steps
 
 
-@partial(jax.jit, static_argnames=("max_moves", "return_moves", "moves_per_step"))
+@partial(jax.jit, static_argnames=("max_moves", "return_moves", "moves_per_step", "or_opt"))
 def two_opt(
     tours: Array,
     dist: Array,
@@ -153,8 +278,9 @@ def two_opt(
     max_moves: int | None = None,
     return_moves: bool = False,
     moves_per_step: int = 32,
+    or_opt: bool = False,
 ) -> Array | tuple[Array, Array]:
-    """2-opt local search of every tour in ``tours`` ``(m, n)`` to a local optimum.
+    """2-opt (and Or-opt) local search of every tour in ``tours`` ``(m, n)`` to a local optimum.
 
     Args:
       tours: int32 ``(m, n)`` permutations.
@@ -163,18 +289,19 @@ def two_opt(
       max_moves: cap on improving moves per tour (default ``4 n``).
       return_moves: also return the number of moves applied per tour ``(m,)`` int32.
       moves_per_step: most moves applied per step (1 = best improvement; see module doc).
+      or_opt: also Or-opt moves (segments of 1..3 cities moved next to a candidate; see
+        :func:`_or_opt_moves`), competing with the 2-opt moves in every step.
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
     tours = jnp.asarray(tours, jnp.int32)
     dist = jnp.asarray(dist, jnp.float32)
-    _check(tours, dist, neighbors)
+    _check(tours, dist, neighbors, or_opt)
     cand = _candidates(dist, neighbors)
     cand_d = dist[jnp.arange(dist.shape[0])[:, None], cand]
     mm = _default_max_moves(tours.shape[1], max_moves)
-    out, moves, _ = jax.vmap(lambda t: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step))(
-        tours
-    )
+    out, moves, _ = jax.vmap(
+        lambda t: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt))(tours)
     return (out, moves) if return_moves else out
 
 
@@ -182,10 +309,6 @@ def two_opt(
 # ACOTSP-style local search: first improvement over candidate lists with don't-look bits,
 # optionally followed by Or-opt segment moves. One move per loop iteration and tour.
 # --------------------------------------------------------------------------------------------
-#: Or-opt moves segments of 1..OR_OPT_MAX cities
-OR_OPT_MAX = 3
-
-
 def _shorter_side(n: int, a: Array, length: Array) -> tuple[Array, Array]:
     """(start, length) of the side to reverse when reversing the cyclic segment of ``length``
     positions from position ``a``: the segment, or its complement when that is shorter (the
@@ -416,10 +539,8 @@ def dlb_local_search(
     """
     tours = jnp.asarray(tours, jnp.int32)
     dist = jnp.asarray(dist, jnp.float32)
-    _check(tours, dist, neighbors)
+    _check(tours, dist, neighbors, or_opt)
     m, n = tours.shape
-    if or_opt and n < 2 * OR_OPT_MAX + 2:
-        raise ValueError(f"Or-opt needs at least {2 * OR_OPT_MAX + 2} cities, got {n}")
     cand = _candidates(dist, neighbors)
     cand_d = dist[jnp.arange(n)[:, None], cand]
     mm = _default_max_moves(n, max_moves)

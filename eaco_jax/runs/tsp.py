@@ -36,9 +36,9 @@ class TspSettings:
     iterations: int = setting(300, "iterations")
     seed: int = setting(0, "random seed")
     local_search: str = setting("2opt", "local search (2opt: best-improvement batches on the "
-                                "candidate lists; 2opt-dlb, 2opt+oropt: ACOTSP-style with "
-                                "don't-look bits, + Or-opt)",
-                                choices=("2opt", "2opt-dlb", "2opt+oropt", "none"))
+                                "candidate lists; or-2opt: the same + Or-opt; 2opt-dlb, "
+                                "2opt+oropt: ACOTSP-style with don't-look bits, + Or-opt)",
+                                choices=("2opt", "or-2opt", "2opt-dlb", "2opt+oropt", "none"))
     ls_best_k: int | None = setting(None, "local search on the k shortest tours of each "
                                     "iteration only (default: every tour; on one CPU core, "
                                     "40 ants with 2opt+oropt on the 10 best did best on pcb442)")

@@ -82,7 +82,7 @@ from eaco_jax.strategies.base import (
 
 Array = jax.Array
 
-LOCAL_SEARCHES = ("2opt", "2opt-dlb", "2opt+oropt", "none")
+LOCAL_SEARCHES = ("2opt", "or-2opt", "2opt-dlb", "2opt+oropt", "none")
 #: named parameter sets of GraphEACO.default_params
 PRESETS = ("default", "mmas", "paper")
 CROSSOVERS = ("erx", "pmx", "none")
@@ -401,18 +401,19 @@ class GraphEACO(Strategy):
         return tours
 
     def _local_search(self, tours: Array, problem: Any, key: Array | None = None) -> Array:
-        """2-opt ("2opt": batched best improvement; "2opt-dlb": ACOTSP's first improvement with
-        don't-look bits; "2opt+oropt": the latter plus Or-opt), on every ant or on the
-        ``ls_best_k`` shortest tours only."""
+        """2-opt ("2opt": batched best improvement; "or-2opt": the same with Or-opt moves
+        competing; "2opt-dlb": ACOTSP's first improvement with don't-look bits; "2opt+oropt":
+        the latter plus Or-opt), on every ant or on the ``ls_best_k`` shortest tours only."""
         if self.local_search == "none":
             return tours
         from eaco_jax.ops import local_search
 
         dist = jnp.asarray(problem.dist, jnp.float32)
         neighbors = problem.neighbors
-        if self.local_search == "2opt":
+        if self.local_search in ("2opt", "or-2opt"):
             def improve(t):
-                return local_search.two_opt(t, dist, neighbors, self.max_ls_moves)
+                return local_search.two_opt(t, dist, neighbors, self.max_ls_moves,
+                                            or_opt=self.local_search == "or-2opt")
         else:
             def improve(t):
                 return local_search.dlb_local_search(
