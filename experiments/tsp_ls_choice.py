@@ -36,10 +36,10 @@ def configs(ants: int, quarter: bool) -> list[tuple[str, str, int | None]]:
     """(label, local_search, ls_best_k) of every configuration compared."""
     k = max(1, ants // 4)
     out = [("2opt", "2opt", None), ("2opt-dlb", "2opt-dlb", None),
-           ("2opt+oropt", "2opt+oropt", None)]
+           ("2opt+oropt", "2opt+oropt", None), ("or-2opt", "or-2opt", None)]
     if quarter:
         out += [(f"2opt-dlb/best{k}", "2opt-dlb", k), (f"2opt+oropt/best{k}", "2opt+oropt", k),
-                (f"2opt/best{k}", "2opt", k)]
+                (f"2opt/best{k}", "2opt", k), (f"or-2opt/best{k}", "or-2opt", k)]
     return out
 
 
@@ -51,6 +51,7 @@ def main() -> None:
     ap.add_argument("--ants", type=int, default=40)
     ap.add_argument("--chunk", type=int, default=5)
     ap.add_argument("--no-best-k", action="store_true", help="skip the ls_best_k variants")
+    ap.add_argument("--configs", nargs="+", help="run only these labels (e.g. or-2opt/best10)")
     ap.add_argument("--data-dir", type=Path, action="append")
     ap.add_argument("--cache-dir", type=Path, default=Path("out/jax_cache"))
     ap.add_argument("--out", type=Path, default=RESULTS)
@@ -65,6 +66,8 @@ def main() -> None:
         runs: dict[str, list] = {}
         for seed in range(args.seeds):
             for label, ls, k in configs(args.ants, not args.no_best_k):
+                if args.configs and label not in args.configs:
+                    continue
                 strategy = GraphEACO(num_ants=args.ants, local_search=ls, ls_best_k=k)
                 r = run_timed(problem, strategy, seed, seconds, args.chunk)
                 r["gap_percent"] = 100.0 * (r["best"] / problem.optimum - 1.0)

@@ -152,6 +152,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--instances", nargs="+", default=["pcb442", "rat783", "pr1002", "d2103"])
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--first-seed", type=int, default=0,
+                    help="seeds first..first+seeds-1 (confirm a screen's choice on fresh seeds)")
     ap.add_argument("--seconds", type=float, default=30.0)
     ap.add_argument("--checkpoints", type=float, nargs="+", default=[1, 3, 10, 30])
     ap.add_argument("--ants", type=int, default=40)
@@ -182,7 +184,7 @@ def main() -> None:
     for name in args.instances:
         problem = find_instance(name, args.data_dir)
         runs = []
-        for seed in range(args.seeds):
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
             r = run_timed(problem, strategy, seed, args.seconds, args.chunk)
             runs.append(r)
             print(f"{name:>8} {label} seed {seed}: {100 * (r['best'] / problem.optimum - 1):.3f}%"
@@ -191,6 +193,7 @@ def main() -> None:
         traces = [r["trace"] for r in runs]
         rows.append({"instance": name, "optimum": problem.optimum, "solver": label,
                      "seconds": args.seconds, "seeds": args.seeds,
+                     "first_seed": args.first_seed,
                      "after_compile": summarize(traces, problem.optimum, args.checkpoints),
                      "from_call": summarize(traces, problem.optimum, args.checkpoints,
                                             [r["compile_seconds"] for r in runs]),
