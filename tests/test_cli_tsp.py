@@ -91,7 +91,27 @@ def test_setting_choices_are_the_strategys():
     from eaco_jax.strategies import graph_eaco
 
     choices = {f.name: f.metadata["choices"] for f in dataclasses.fields(tsp.TspSettings)}
-    assert choices["local_search"] == graph_eaco.LOCAL_SEARCHES
+    assert choices["local_search"] == ("auto", *graph_eaco.LOCAL_SEARCHES)
     assert choices["preset"] == graph_eaco.PRESETS
     assert choices["crossover"] == ("auto", *graph_eaco.CROSSOVERS)
     assert choices["mutation"] == ("auto", *graph_eaco.MUTATIONS)
+
+
+def test_colony_defaults_by_backend(tmp_path):
+    """--ants and --local-search left out: 40 ants with 2-opt on a CPU (this machine, recorded
+    as resolved); on a GPU or-2opt with the measured best colony for the instance size; an
+    explicit value wins."""
+    from eaco_jax.runs import tsp
+
+    assert tsp.colony_defaults(442, "cpu") == (40, "2opt")
+    assert tsp.colony_defaults(442, "gpu") == (1024, "or-2opt")
+    assert tsp.colony_defaults(1002, "gpu") == (384, "or-2opt")
+    assert tsp.colony_defaults(7, "gpu") == (1024, "2opt")
+    built = tsp.build(tsp.TspSettings("burma14", iterations=2))
+    assert (built.strategy.num_ants, built.strategy.local_search) == (40, "2opt")
+    built = tsp.build(tsp.TspSettings("burma14", ants=6, local_search="or-2opt"))
+    assert (built.strategy.num_ants, built.strategy.local_search) == (6, "or-2opt")
+    res = CliRunner().invoke(app, ["tsp", "burma14", "--iterations", "2", "--json"])
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.stdout.strip().splitlines()[-1])
+    assert (record["ants"], record["local_search"]) == (40, "2opt")
