@@ -77,7 +77,7 @@ def enable_compile_cache(path: Path | None) -> None:
 
 
 def run_timed(problem, strategy, seed: int, seconds: float, chunk: int,
-              max_iterations: int = 10**7) -> dict:
+              max_iterations: int = 10**7, params=None) -> dict:
     """One seeded run for ``seconds`` of search after compilation (``max_seconds``).
 
     Returns ``trace`` (``[seconds_after_compile, best_length, iterations]`` after every chunk,
@@ -95,7 +95,7 @@ def run_timed(problem, strategy, seed: int, seconds: float, chunk: int,
                       int(progress.iterations)])
 
     res = minimize(problem, strategy, seed=seed, iterations=max_iterations, chunk_size=chunk,
-                   callback=record, max_seconds=seconds)
+                   callback=record, max_seconds=seconds, params=params)
     chunk_s = float(np.median(np.diff([0.0] + [t for t, _, _ in trace]))) if trace else 0.0
     return {"seed": seed, "compile_seconds": float(res.compile_seconds),
             "chunk_seconds": chunk_s, "best": trace[-1][1] if trace else None,

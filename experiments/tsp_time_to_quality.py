@@ -159,6 +159,7 @@ def main() -> None:
     ap.add_argument("--ants", type=int, default=40)
     ap.add_argument("--local-search", default="2opt")
     ap.add_argument("--ls-best-k", type=int)
+    ap.add_argument("--params", help="GraphParams overrides, KEY=VALUE,... (as eaco --params)")
     ap.add_argument("--chunk", type=int, default=5)
     ap.add_argument("--acotsp", type=Path, help="ACOTSP binary (built outside the repository)")
     ap.add_argument("--acotsp-ls", type=int, nargs="+", default=[1, 3],
@@ -174,18 +175,22 @@ def main() -> None:
         tables(args.tables)
         return
     enable_compile_cache(args.cache_dir)
+    from eaco_jax.runs.base import params_with, parse_overrides
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     strategy = GraphEACO(num_ants=args.ants, local_search=args.local_search,
                          ls_best_k=args.ls_best_k)
+    overrides = parse_overrides(args.params)
     label = f"eaco {args.ants} ants {args.local_search}" + (
-        f" best{args.ls_best_k}" if args.ls_best_k else "")
+        f" best{args.ls_best_k}" if args.ls_best_k else "") + (
+        f" {args.params}" if args.params else "")
     rows = []
     for name in args.instances:
         problem = find_instance(name, args.data_dir)
         runs = []
         for seed in range(args.first_seed, args.first_seed + args.seeds):
-            r = run_timed(problem, strategy, seed, args.seconds, args.chunk)
+            params = params_with(strategy.default_params(problem), overrides, "--params: ")
+            r = run_timed(problem, strategy, seed, args.seconds, args.chunk, params=params)
             runs.append(r)
             print(f"{name:>8} {label} seed {seed}: {100 * (r['best'] / problem.optimum - 1):.3f}%"
                   f" after {r['iterations']} iterations, compile {r['compile_seconds']:.1f} s",
