@@ -98,6 +98,21 @@ def test_every_bundled_instance_reads_and_is_symmetric():
         assert bundled_optima()[name] >= len(d) * off.min()
 
 
+def test_every_bundled_optimum_lies_between_the_spanning_tree_and_a_greedy_tour():
+    """A tour less one edge is a spanning tree, and no tour beats the optimum: a wrong optimum
+    in optima.csv, or coordinates lost or garbled in a copied file, breaks one of the bounds."""
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
+    from eaco_jax.problems.tsp import nearest_neighbour_tour
+
+    for name, optimum in bundled_optima().items():
+        d = distance_matrix(read_tsplib(DATA_DIR / f"{name}.tsp"))
+        tree = minimum_spanning_tree(d.astype(np.float64)).sum()
+        tour = nearest_neighbour_tour(d)
+        greedy = int(d[tour, np.roll(tour, -1)].sum())
+        assert tree <= optimum <= greedy, (name, tree, optimum, greedy)
+
+
 def test_distance_rules_by_hand():
     xy = np.array([[0.0, 0.0], [3.0, 4.5], [10.0, 0.0]])
     # sqrt(9 + 20.25) = 5.408: EUC_2D rounds, CEIL_2D rounds up
