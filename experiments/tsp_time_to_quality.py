@@ -150,7 +150,7 @@ def plot(rows: list[dict], path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--instances", nargs="+", default=["pcb442", "rat783", "pr1002", "d2103"])
+    ap.add_argument("--instances", nargs="+", default=["pcb442", "rat783", "pr1002", "pr2392"])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--first-seed", type=int, default=0,
                     help="seeds first..first+seeds-1 (confirm a screen's choice on fresh seeds)")
