@@ -106,6 +106,7 @@ def test_colony_defaults_by_backend(tmp_path):
     assert tsp.colony_defaults(442, "cpu") == (40, "2opt")
     assert tsp.colony_defaults(442, "gpu") == (1024, "or-2opt")
     assert tsp.colony_defaults(1002, "gpu") == (384, "or-2opt")
+    assert tsp.colony_defaults(2392, "gpu") == (96, "or-2opt")
     assert tsp.colony_defaults(7, "gpu") == (1024, "2opt")
     built = tsp.build(tsp.TspSettings("burma14", iterations=2))
     assert (built.strategy.num_ants, built.strategy.local_search) == (40, "2opt")

@@ -33,7 +33,8 @@ class TspSettings:
     instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
                             positional=True, metavar="FILE_OR_NAME")
     ants: int | None = setting(None, "colony size (default: 40 on a CPU; on a GPU 1024 below "
-                               "700 cities, else 384: the best measured for a time budget)")
+                               "700 cities, 384 below 1500, else 96: the best measured for "
+                               "a time budget)")
     iterations: int = setting(300, "iterations")
     seed: int = setting(0, "random seed")
     local_search: str = setting("auto", "local search (2opt: best-improvement batches on the "
@@ -66,14 +67,18 @@ def colony_defaults(n: int, backend: str) -> tuple[int, str]:
     """(ants, local search) of ``--ants`` / ``--local-search auto`` for ``n`` cities.
 
     On a CPU: 40 ants with 2-opt (the library's defaults). On a GPU: or-2opt, with 1,024 ants
-    below 700 cities and 384 from there, the best colony sizes measured on one H100 in a time
-    budget (10 seeds each; ``experiments/results/gpu/tsp_time_to_quality_h100_*_or2opt.json``):
-    pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants; pr1002 at 7.5 s, 384 of 256 / 384 / 512 /
-    1,024 ants.
+    below 700 cities, 384 below 1,500 and 96 from there: the best colony sizes measured on one
+    H100 in a time budget (``experiments/results/gpu/tsp_time_to_quality_h100_*_or2opt*.json``
+    and ``tsp_ttq_screen_h100_*``): pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants (10 seeds);
+    pr1002 at 7.5 s, 384 of 256 / 384 / 512 / 1,024 (10 seeds); rat783 at 10 s, 384 of 192 /
+    384 / 768 (screen); pr2392 at 20 s, 96 of 96 / 128 / 192 / 384 / 768 (2-seed screen). The
+    bigger the tour, the longer each ant's local search, and the fewer ants fill a budget.
+    The 1,500 boundary lies between two measured sizes, not at a measured crossing.
     """
     if backend == "cpu":
         return 40, "2opt"
-    return (1024 if n < 700 else 384), ("or-2opt" if n >= 8 else "2opt")  # Or-opt: 8+ cities
+    ants = 1024 if n < 700 else 384 if n < 1500 else 96
+    return ants, ("or-2opt" if n >= 8 else "2opt")  # Or-opt: 8+ cities
 
 
 def build(s: TspSettings) -> Built:
