@@ -159,6 +159,10 @@ def main() -> None:
     ap.add_argument("--ants", type=int, default=40)
     ap.add_argument("--local-search", default="2opt")
     ap.add_argument("--ls-best-k", type=int)
+    ap.add_argument("--preset", default="default", help="GraphEACO preset (default/mmas/paper)")
+    ap.add_argument("--crossover", default="auto", help="GraphEACO crossover (auto/erx/none)")
+    ap.add_argument("--mutation", default="auto",
+                    help="GraphEACO mutation (auto/inversion/none)")
     ap.add_argument("--params", help="GraphParams overrides, KEY=VALUE,... (as eaco --params)")
     ap.add_argument("--chunk", type=int, default=5)
     ap.add_argument("--acotsp", type=Path, help="ACOTSP binary (built outside the repository)")
@@ -179,10 +183,14 @@ def main() -> None:
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     strategy = GraphEACO(num_ants=args.ants, local_search=args.local_search,
-                         ls_best_k=args.ls_best_k)
+                         ls_best_k=args.ls_best_k, crossover=args.crossover,
+                         mutation=args.mutation, preset=args.preset)
     overrides = parse_overrides(args.params)
     label = f"eaco {args.ants} ants {args.local_search}" + (
         f" best{args.ls_best_k}" if args.ls_best_k else "") + (
+        f" {args.preset}" if args.preset != "default" else "") + (
+        f" cx {args.crossover}" if args.crossover != "auto" else "") + (
+        f" mut {args.mutation}" if args.mutation != "auto" else "") + (
         f" {args.params}" if args.params else "")
     rows = []
     for name in args.instances:

@@ -92,27 +92,37 @@ def test_setting_choices_are_the_strategys():
 
     choices = {f.name: f.metadata["choices"] for f in dataclasses.fields(tsp.TspSettings)}
     assert choices["local_search"] == ("auto", *graph_eaco.LOCAL_SEARCHES)
-    assert choices["preset"] == graph_eaco.PRESETS
+    assert choices["preset"] == ("auto", *graph_eaco.PRESETS)
     assert choices["crossover"] == ("auto", *graph_eaco.CROSSOVERS)
     assert choices["mutation"] == ("auto", *graph_eaco.MUTATIONS)
 
 
 def test_colony_defaults_by_backend(tmp_path):
-    """--ants and --local-search left out: 40 ants with 2-opt on a CPU (this machine, recorded
-    as resolved); on a GPU or-2opt with the measured best colony for the instance size; an
-    explicit value wins."""
+    """--ants / --local-search / --ls-best-k / --preset left out: on a CPU (this machine) 50
+    ants, don't-look-bit 2-opt + Or-opt on the 25 best, MMAS as ACOTSP runs it; on a GPU
+    or-2opt with the measured best colony for the instance size; an explicit value wins."""
     from eaco_jax.runs import tsp
 
-    assert tsp.colony_defaults(442, "cpu") == (40, "2opt")
-    assert tsp.colony_defaults(442, "gpu") == (1024, "or-2opt")
-    assert tsp.colony_defaults(1002, "gpu") == (384, "or-2opt")
-    assert tsp.colony_defaults(2392, "gpu") == (96, "or-2opt")
-    assert tsp.colony_defaults(7, "gpu") == (1024, "2opt")
+    cpu = tsp.colony_defaults(442, "cpu")
+    assert (cpu.ants, cpu.local_search, cpu.ls_best_k, cpu.preset) == (
+        50, "2opt+oropt", 25, "mmas")
+    for n, ants in ((442, 1024), (1002, 384), (2392, 96)):
+        gpu = tsp.colony_defaults(n, "gpu")
+        assert (gpu.ants, gpu.local_search, gpu.ls_best_k, gpu.preset) == (
+            ants, "or-2opt", None, "default")
+    assert tsp.colony_defaults(7, "gpu").local_search == "2opt"
     built = tsp.build(tsp.TspSettings("burma14", iterations=2))
-    assert (built.strategy.num_ants, built.strategy.local_search) == (40, "2opt")
-    built = tsp.build(tsp.TspSettings("burma14", ants=6, local_search="or-2opt"))
-    assert (built.strategy.num_ants, built.strategy.local_search) == (6, "or-2opt")
+    st = built.strategy
+    assert (st.num_ants, st.local_search, st.ls_best_k, st.preset) == (
+        50, "2opt+oropt", 25, "mmas")
+    assert (st.crossover, st.mutation) == ("none", "none")  # ACOTSP's MMAS has neither
+    built = tsp.build(tsp.TspSettings("burma14", ants=6, local_search="or-2opt", ls_best_k=2,
+                                      preset="default"))
+    st = built.strategy
+    assert (st.num_ants, st.local_search, st.ls_best_k, st.preset) == (6, "or-2opt", 2, "default")
+    assert st.crossover == "erx"
     res = CliRunner().invoke(app, ["tsp", "burma14", "--iterations", "2", "--json"])
     assert res.exit_code == 0, res.output
     record = json.loads(res.stdout.strip().splitlines()[-1])
-    assert (record["ants"], record["local_search"]) == (40, "2opt")
+    assert (record["ants"], record["local_search"], record["ls_best_k"], record["preset"]) == (
+        50, "2opt+oropt", 25, "mmas")

@@ -150,3 +150,24 @@ def test_genetic_operators_auto_follow_local_search():
     bare = GraphEACO(local_search="none")
     assert (bare.crossover, bare.mutation) == ("none", "none")
     assert GraphEACO(local_search="none", crossover="pmx").crossover == "pmx"
+
+
+def test_mmas_preset_with_local_search_is_acotsps():
+    """preset="mmas" with local search: ACOTSP's MMAS + LS settings (acotsp.c): tau_min =
+    tau_max / (2 n), a restart of converged trails after 250 iterations without a better
+    restart-best tour, no crossover or mutation; "default" keeps its own values."""
+    from eaco_jax.errors import ConfigError
+
+    problem = load_tsplib("pcb442")
+    s = GraphEACO(local_search="2opt+oropt", preset="mmas")
+    assert (s.crossover, s.mutation) == ("none", "none")
+    p = s.default_params(problem)
+    tau_max, tau_min = pheromone.mmas_bounds(jnp.float32(50778.0), problem.n, p.p_best, 1.0, p.branching)
+    np.testing.assert_allclose(float(tau_min), float(tau_max) / (2 * problem.n), rtol=1e-5)
+    assert float(p.restart_after) == 250.0 and float(p.restart_branching) == 1.00001
+    assert bool(p.use_restart_best)
+    d = GraphEACO(local_search="2opt+oropt").default_params(problem)
+    assert float(d.branching) == 0.0 and float(d.restart_after) == 50.0
+    assert GraphEACO(local_search="2opt+oropt").crossover == "erx"
+    with pytest.raises(ConfigError, match="needs the problem"):
+        s.default_params()

@@ -3,7 +3,8 @@
 The reference walks the same city order with the same rules (first improvement over the
 radius-pruned candidate list, successor side before predecessor side, the shorter side
 reversed, Or-opt's best move over segments of 1-3 cities at c1), one move at a time, so the
-JAX search must return the very same tours.
+JAX search must return the very same tours - both implementations: the vmapped XLA loop
+and the numba one the CPU runs (``impl="auto"`` on a CPU, as every other test here uses).
 """
 
 from __future__ import annotations
@@ -145,13 +146,15 @@ def eil51():
 
 
 @pytest.mark.parametrize("or_opt", [False, True])
-@pytest.mark.parametrize("full_check,block", [(False, 8), (True, 8), (False, 1), (True, 3)])
-def test_matches_numpy_reference_move_for_move(eil51, or_opt, full_check, block):
+@pytest.mark.parametrize("full_check,block,impl", [
+    (False, 8, "xla"), (True, 8, "xla"), (False, 1, "xla"), (True, 3, "xla"),
+    (False, 1, "native"), (True, 1, "native")])
+def test_matches_numpy_reference_move_for_move(eil51, or_opt, full_check, block, impl):
     d, cand = np.asarray(eil51.dist, np.float64), np.asarray(eil51.neighbors)
     tours, orders = _tours(51, 3, 0), _tours(51, 3, 1)
     out, moves = dlb_local_search(None, tours, eil51.dist, eil51.neighbors, or_opt=or_opt,
                                   full_check=full_check, return_moves=True, order=orders,
-                                  block=block)
+                                  block=block, impl=impl)
     for t, o, got, mv in zip(tours, orders, np.asarray(out), np.asarray(moves), strict=True):
         want, want_moves = reference(t, o, d, cand, or_opt, full_check)
         np.testing.assert_array_equal(got, want)

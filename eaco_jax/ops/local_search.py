@@ -307,7 +307,8 @@ def two_opt(
 
 # --------------------------------------------------------------------------------------------
 # ACOTSP-style local search: first improvement over candidate lists with don't-look bits,
-# optionally followed by Or-opt segment moves. One move per loop iteration and tour.
+# optionally followed by Or-opt segment moves. One move per loop iteration and tour. On a CPU
+# the same search runs as native code (local_search_native.py; identical tours).
 # --------------------------------------------------------------------------------------------
 def _shorter_side(n: int, a: Array, length: Array) -> tuple[Array, Array]:
     """(start, length) of the side to reverse when reversing the cyclic segment of ``length``
@@ -506,8 +507,23 @@ def _dlb_one(
     return tour, moves, iters
 
 
+#: implementations of :func:`dlb_local_search`: "xla" (a vmapped ``lax.while_loop``, any
+#: backend), "native" (numba machine code called from the jitted step, CPU; identical tours),
+#: "auto" (native on a CPU backend, xla elsewhere)
+DLB_IMPLS = ("auto", "xla", "native")
+
+
+def resolve_dlb_impl(impl: str) -> str:
+    """"xla" or "native" for ``impl`` on the default backend (see :data:`DLB_IMPLS`)."""
+    if impl not in DLB_IMPLS:
+        raise ValueError(f"impl={impl!r} is not one of {DLB_IMPLS}")
+    if impl == "auto":
+        return "native" if jax.default_backend() == "cpu" else "xla"
+    return impl
+
+
 @partial(jax.jit, static_argnames=("max_moves", "return_moves", "or_opt", "full_check",
-                                   "block"))
+                                   "block", "impl"))
 def dlb_local_search(
     key: Array | None,
     tours: Array,
@@ -519,6 +535,7 @@ def dlb_local_search(
     return_moves: bool = False,
     order: Array | None = None,
     block: int = 1,
+    impl: str = "auto",
 ) -> Array | tuple[Array, Array]:
     """ACOTSP-style 2-opt (and optionally Or-opt) of every tour ``(m, n)``, see :func:`_dlb_one`.
 
@@ -533,7 +550,10 @@ def dlb_local_search(
       full_check: end only after a full pass without moves (a true candidate-list optimum).
       return_moves: also return the number of moves per tour.
       order: ``(m, n)`` explicit city orders (overrides ``key``; for tests).
-      block: cities evaluated per loop iteration (the result does not depend on it).
+      block: cities evaluated per loop iteration (the result does not depend on it; xla only).
+      impl: "auto", "xla" or "native" (:data:`DLB_IMPLS`; every one returns the same tours).
+        Native is ACOTSP's speed on a CPU: one sequential search per tour is what a CPU does
+        well and what XLA's CPU loop does slowly (``eaco_jax/ops/local_search_native.py``).
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
@@ -551,6 +571,11 @@ def dlb_local_search(
             keys = jax.random.split(key, m)
             order = jax.vmap(lambda kk: jax.random.permutation(kk, n))(keys).astype(jnp.int32)
     order = jnp.asarray(order, jnp.int32)
+    if resolve_dlb_impl(impl) == "native":
+        from eaco_jax.ops.local_search_native import dlb_native
+
+        out, moves = dlb_native(tours, order, dist, cand, cand_d, mm, or_opt, full_check)
+        return (out, moves) if return_moves else out
 
     def one(t, o):
         return _dlb_one(t, o, dist, cand, cand_d, mm, or_opt, full_check, block)

@@ -32,7 +32,7 @@ PARAMS_HELP = ("hyper-parameters and mechanism switches as KEY=VALUE,... (e.g. "
 class TspSettings:
     instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
                             positional=True, metavar="FILE_OR_NAME")
-    ants: int | None = setting(None, "colony size (default: 40 on a CPU; on a GPU 1024 below "
+    ants: int | None = setting(None, "colony size (default: 50 on a CPU; on a GPU 1024 below "
                                "700 cities, 384 below 1500, else 96: the best measured for "
                                "a time budget)")
     iterations: int = setting(300, "iterations")
@@ -40,19 +40,21 @@ class TspSettings:
     local_search: str = setting("auto", "local search (2opt: best-improvement batches on the "
                                 "candidate lists; or-2opt: the same + Or-opt; 2opt-dlb, "
                                 "2opt+oropt: ACOTSP-style with don't-look bits, + Or-opt; "
-                                "auto: or-2opt on a GPU, 2opt on a CPU)",
+                                "auto: or-2opt on a GPU, 2opt-dlb on a CPU)",
                                 choices=("auto", "2opt", "or-2opt", "2opt-dlb", "2opt+oropt",
                                          "none"))
     ls_best_k: int | None = setting(None, "local search on the k shortest tours of each "
-                                    "iteration only (default: every tour; on one CPU core, "
-                                    "40 ants with 2opt+oropt on the 10 best did best on pcb442)")
-    crossover: str = setting("auto", "tour crossover ('auto': erx with local search, else none)",
+                                    "iteration only (default: the 25 best on a CPU, every "
+                                    "tour on a GPU)")
+    crossover: str = setting("auto", "tour crossover ('auto': erx with local search, except "
+                             "in the mmas preset; else none)",
                              choices=("auto", "erx", "pmx", "none"))
     mutation: str = setting("auto", "tour mutation ('auto': inversion with local search)",
                             choices=("auto", "inversion", "swap", "none"))
-    preset: str = setting("default", "parameter set: default (evidence-based), mmas, paper "
-                          "(Table 4, every paper mechanism on)",
-                          choices=("default", "mmas", "paper"))
+    preset: str = setting("auto", "parameter set: default (evidence-based), mmas (as ACOTSP "
+                          "runs it), paper (Table 4, every paper mechanism on); auto: mmas on "
+                          "a CPU, default on a GPU",
+                          choices=("auto", "default", "mmas", "paper"))
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
     max_seconds: float | None = setting(None, "stop after this many compute seconds")
@@ -63,22 +65,40 @@ class TspSettings:
         check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k")
 
 
-def colony_defaults(n: int, backend: str) -> tuple[int, str]:
-    """(ants, local search) of ``--ants`` / ``--local-search auto`` for ``n`` cities.
+@dataclasses.dataclass(frozen=True)
+class ColonyDefaults:
+    """What ``auto`` settings of ``eaco tsp`` resolve to on a backend (see
+    :func:`colony_defaults`)."""
 
-    On a CPU: 40 ants with 2-opt (the library's defaults). On a GPU: or-2opt, with 1,024 ants
-    below 700 cities, 384 below 1,500 and 96 from there: the best colony sizes measured on one
-    H100 in a time budget (``experiments/results/gpu/tsp_time_to_quality_h100_*_or2opt*.json``
-    and ``tsp_ttq_screen_h100_*``): pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants (10 seeds);
+    ants: int
+    local_search: str
+    ls_best_k: int | None  # None: every ant
+    preset: str
+
+
+def colony_defaults(n: int, backend: str) -> ColonyDefaults:
+    """The colony that ``--ants`` / ``--local-search`` / ``--ls-best-k`` / ``--preset`` left
+    out (``auto``) resolve to for ``n`` cities.
+
+    On a CPU: 50 ants, ACOTSP's don't-look-bit 2-opt (native code, see
+    ``eaco_jax/ops/local_search_native.py``) on the 25 shortest tours, MMAS as ACOTSP runs it
+    (preset "mmas": no crossover / mutation, tau_min = tau_max / 2n, restarts of converged
+    trails): best of the screen on pcb442 at 10 s on one core
+    (``experiments/results/tsp_ls_choice_pcb442_cpu_native.json``) and confirmed on 10 seeds
+    beside ACOTSP (``tsp_time_to_quality_cpu_{pcb442,a280}_native.json``).
+    On a GPU: or-2opt, with 1,024 ants below 700 cities, 384 below 1,500 and 96 from there,
+    the "default" preset: the best colony sizes measured on one H100 in a time budget
+    (``experiments/results/gpu/tsp_time_to_quality_h100_*_or2opt*.json`` and
+    ``tsp_ttq_screen_h100_*``): pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants (10 seeds);
     pr1002 at 7.5 s, 384 of 256 / 384 / 512 / 1,024 (10 seeds); rat783 at 10 s, 384 of 192 /
     384 / 768 (screen); pr2392 at 20 s, 96 of 96 / 128 / 192 / 384 / 768 (2-seed screen). The
     bigger the tour, the longer each ant's local search, and the fewer ants fill a budget.
     The 1,500 boundary lies between two measured sizes, not at a measured crossing.
     """
     if backend == "cpu":
-        return 40, "2opt"
+        return ColonyDefaults(50, "2opt+oropt", 25, "mmas")
     ants = 1024 if n < 700 else 384 if n < 1500 else 96
-    return ants, ("or-2opt" if n >= 8 else "2opt")  # Or-opt: 8+ cities
+    return ColonyDefaults(ants, "or-2opt" if n >= 8 else "2opt", None, "default")  # Or-opt: 8+
 
 
 def build(s: TspSettings) -> Built:
@@ -88,14 +108,13 @@ def build(s: TspSettings) -> Built:
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     problem = load_tsplib(s.instance)
-    ants, local_search = colony_defaults(int(problem.n), jax.default_backend())
-    if s.ants is not None:
-        ants = int(s.ants)
-    if s.local_search != "auto":
-        local_search = s.local_search
-    strategy = GraphEACO(num_ants=ants, local_search=local_search,
-                         ls_best_k=None if s.ls_best_k is None else int(s.ls_best_k),
-                         crossover=s.crossover, mutation=s.mutation, preset=s.preset)
+    auto = colony_defaults(int(problem.n), jax.default_backend())
+    ants = auto.ants if s.ants is None else int(s.ants)
+    local_search = auto.local_search if s.local_search == "auto" else s.local_search
+    ls_best_k = auto.ls_best_k if s.ls_best_k is None else int(s.ls_best_k)
+    preset = auto.preset if s.preset == "auto" else s.preset
+    strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
+                         crossover=s.crossover, mutation=s.mutation, preset=preset)
     overrides = parse_overrides(s.params)
     params = params_with(strategy.default_params(problem), overrides, "--params: ")
     strategy.check_params(params, "--params: ")
@@ -131,7 +150,8 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
         "ants": int(built.strategy.num_ants),
         "seed": int(s.seed),
         "local_search": built.strategy.local_search,
-        "ls_best_k": s.ls_best_k,
+        "ls_best_k": built.strategy.ls_best_k,
+        "preset": built.strategy.preset,
         "best_length": length,
         "optimum": problem.optimum,
         "tour": tour.tolist(),

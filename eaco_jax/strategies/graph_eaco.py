@@ -156,6 +156,14 @@ class GraphState(State):
     restarts: Array
 
 
+def acotsp_ls_branching(n: int, p_best: float = 0.05) -> float:
+    """The ``branching`` that makes tau_min = tau_max / (2 n), ACOTSP's MMAS limit with local
+    search (:func:`eaco_jax.ops.pheromone.mmas_bounds` sets tau_min = tau_max (1 - r) /
+    (branching r), r = p_best^(1/n)); about 6 for any n at p_best = 0.05."""
+    root = p_best ** (1.0 / n)
+    return 2.0 * n * (1.0 - root) / root
+
+
 def paper_params() -> GraphParams:
     """The paper's EACO: Table 4's values and every mechanism of the paper on.
 
@@ -208,7 +216,9 @@ class GraphEACO(Strategy):
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
             raise ConfigError(f"preset={self.preset!r} is not one of {PRESETS}")
-        with_ls = self.local_search != "none" or self.preset == "paper"
+        # ERX / inversion come with local search, except in MMAS as ACOTSP runs it
+        with_ls = ((self.local_search != "none" and self.preset != "mmas")
+                   or self.preset == "paper")
         for name, on in (("crossover", "erx"), ("mutation", "inversion")):
             if getattr(self, name) == "auto":
                 object.__setattr__(self, name, on if with_ls else "none")
@@ -228,10 +238,16 @@ class GraphEACO(Strategy):
     def default_params(self, problem: Any = None, preset: str | None = None) -> GraphParams:
         """The parameters of ``preset`` (default: the strategy's ``preset`` field).
 
-        "mmas": MAX-MIN ant system as ACOTSP runs it (the module docstring's defaults; without
-        local search the ACOTSP no-LS settings). "paper": Table 4 and every mechanism of the
-        paper on (:func:`paper_params`). "default": the evidence-based default
-        (``experiments/ablation.py``), today the same as "mmas".
+        "mmas": MAX-MIN ant system as ACOTSP runs it. Without local search the ACOTSP no-LS
+        settings; with it ACOTSP's local-search settings (``acotsp.c``): tau_min =
+        tau_max / (2 n) (:func:`acotsp_ls_branching`), a restart once the trails have
+        converged (lambda-branching factor below 1.00001) and the best tour since the last
+        restart is 250 iterations old, deposits on that restart-best tour; crossover and
+        mutation off (``"auto"``). "paper": Table 4 and every mechanism of the paper on
+        (:func:`paper_params`). "default": the evidence-based default
+        (``experiments/ablation.py``): with local search the module docstring's values (a
+        restart after 50 iterations without a new best, n / 2 - 1 choices in tau_min), which
+        the GPU time-to-quality runs use; without it the same as "mmas".
         """
         preset = self.preset if preset is None else preset
         if preset not in PRESETS:
@@ -245,6 +261,14 @@ class GraphEACO(Strategy):
             params = params.replace(
                 rho=0.02, alpha_g=0.02, branching=float((k + 1) // 2), restart_after=250.0,
                 restart_branching=1.00001, use_restart_best=True, gb_every=25.0)
+        elif preset == "mmas":
+            n = getattr(problem, "n", None)
+            if n is None:
+                raise ConfigError("preset='mmas' with local search needs the problem "
+                                  "(tau_min depends on its size): default_params(problem)")
+            params = params.replace(
+                branching=acotsp_ls_branching(int(n), float(params.p_best)),
+                restart_after=250.0, restart_branching=1.00001, use_restart_best=True)
         return as_params(params)
 
     def inactive_params(self, params: GraphParams) -> dict[str, str]:
@@ -403,7 +427,8 @@ class GraphEACO(Strategy):
     def _local_search(self, tours: Array, problem: Any, key: Array | None = None) -> Array:
         """2-opt ("2opt": batched best improvement; "or-2opt": the same with Or-opt moves
         competing; "2opt-dlb": ACOTSP's first improvement with don't-look bits; "2opt+oropt":
-        the latter plus Or-opt), on every ant or on the ``ls_best_k`` shortest tours only."""
+        the latter plus Or-opt; these two run as native code on a CPU, with the same tours),
+        on every ant or on the ``ls_best_k`` shortest tours only."""
         if self.local_search == "none":
             return tours
         from eaco_jax.ops import local_search
