@@ -106,10 +106,10 @@ def test_colony_defaults_by_backend(tmp_path):
     cpu = tsp.colony_defaults(442, "cpu")
     assert (cpu.ants, cpu.local_search, cpu.ls_best_k, cpu.preset) == (
         50, "2opt+oropt", 25, "mmas")
-    for n, ants in ((442, 1024), (1002, 384), (2392, 96)):
+    for n, ants, preset in ((442, 1024, "default"), (1002, 384, "mmas"), (2392, 96, "mmas")):
         gpu = tsp.colony_defaults(n, "gpu")
         assert (gpu.ants, gpu.local_search, gpu.ls_best_k, gpu.preset) == (
-            ants, "or-2opt", None, "default")
+            ants, "or-2opt", None, preset)
     assert tsp.colony_defaults(7, "gpu").local_search == "2opt"
     built = tsp.build(tsp.TspSettings("burma14", iterations=2))
     st = built.strategy

@@ -162,9 +162,10 @@ def test_mmas_preset_with_local_search_is_acotsps():
     s = GraphEACO(local_search="2opt+oropt", preset="mmas")
     assert (s.crossover, s.mutation) == ("none", "none")
     p = s.default_params(problem)
-    tau_max, tau_min = pheromone.mmas_bounds(jnp.float32(50778.0), problem.n, p.p_best, 1.0, p.branching)
+    tau_max, tau_min = pheromone.mmas_bounds(jnp.float32(50778.0), problem.n, p.p_best, 1.0,
+                                             p.branching)
     np.testing.assert_allclose(float(tau_min), float(tau_max) / (2 * problem.n), rtol=1e-5)
-    assert float(p.restart_after) == 250.0 and float(p.restart_branching) == 1.00001
+    assert float(p.restart_after) == 250.0 and p.restart_branching == np.float32(1.00001)
     assert bool(p.use_restart_best)
     d = GraphEACO(local_search="2opt+oropt").default_params(problem)
     assert float(d.branching) == 0.0 and float(d.restart_after) == 50.0

@@ -2,7 +2,8 @@
 
 The reference walks the same city order with the same rules (first improvement over the
 radius-pruned candidate list, successor side before predecessor side, the shorter side
-reversed, Or-opt's best move over segments of 1-3 cities at c1), one move at a time, so the
+reversed, Or-opt's best move over segments of 1-3 cities at c1 among the candidates closer than
+the segment's removal gain), one move at a time, so the
 JAX search must return the very same tours - both implementations: the vmapped XLA loop
 and the numba one the CPU runs (``impl="auto"`` on a CPU, as every other test here uses).
 """
@@ -87,6 +88,8 @@ def reference(tour, order, d, cand, or_opt=False, full_check=False, max_moves=10
                 g_rem = d[pp, first] + d[last, ss] - d[pp, ss]
                 for h in range(k):
                     c2 = int(cand[c1, h])
+                    if not d[c1, c2] < g_rem:  # the gain criterion
+                        continue
                     q = (pos[c2] - sa) % n
                     sc, pc = tour[(pos[c2] + 1) % n], tour[(pos[c2] - 1) % n]
                     for side in (0, 1):

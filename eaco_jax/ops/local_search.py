@@ -378,8 +378,10 @@ def _dlb_one(
       predecessor side likewise. The shorter of the two sides is reversed.
     * Or-opt (when ``or_opt`` and no 2-opt move was found): the segments of 1..3 cities that
       start or end at ``c1`` are moved next to a candidate ``c2`` of ``c1`` (between ``c2`` and
-      one of its tour neighbours, in the orientation that makes ``(c1, c2)`` an edge); the move
-      of largest positive gain is applied.
+      one of its tour neighbours, in the orientation that makes ``(c1, c2)`` an edge), for the
+      candidates with ``d(c1, c2)`` below the segment's removal gain ``d(p, first) + d(last,
+      s) - d(p, s)`` (the gain criterion, Or-opt's counterpart of the 2-opt radius: it keeps
+      the scan to a few near candidates); the move of largest positive gain is applied.
     * A move clears the don't-look bits of the endpoints of every removed edge; no move sets
       ``c1``'s bit. The search ends when every bit is set (with ``full_check``: and a full pass
       over all cities found nothing, which makes the result a local optimum of the candidate
@@ -442,8 +444,10 @@ def _dlb_one(
                        - dist[other[:, None], succ_c2[None, :]])
             g_before = (dist[pred_c2, c2s][None, :] - d12[None, :]
                         - dist[pred_c2[None, :], other[:, None]])
-            ok_after = ~in_seg & (qc2 != n - 1)  # c2 != pp (that is the segment's own place)
-            ok_before = ~in_seg & (qc2 != lens[:, None])  # c2 != ss
+            # the gain criterion: the new edge (c1, c2) shorter than the removed edges' gain
+            fits = d12[None, :] < g_rem[:, None]
+            ok_after = fits & ~in_seg & (qc2 != n - 1)  # c2 != pp (the segment's own place)
+            ok_before = fits & ~in_seg & (qc2 != lens[:, None])  # c2 != ss
             g_or = jnp.stack([jnp.where(ok_after, g_rem[:, None] + g_after, -jnp.inf),
                               jnp.where(ok_before, g_rem[:, None] + g_before, -jnp.inf)],
                              axis=-1)  # (S, k, 2)

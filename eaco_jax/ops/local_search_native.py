@@ -69,7 +69,7 @@ def _or_move(tour, pos, base, span, t, rev, seg):  # pragma: no cover - numba
 
 @numba.njit(cache=True, nogil=True)
 def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, lens, back,
-             pos, rank, active, seg, ends, pc2, sc2, pr2, ga, gb):  # pragma: no cover - numba
+             pos, rank, active, seg, ends, pc2, sc2, pr2, ga, gb, grem):  # pragma: no cover
     """One tour, in place: ``local_search._dlb_one`` with ``block=1``. Returns the moves."""
     n = tour.shape[0]
     k = cand.shape[1]
@@ -128,26 +128,32 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
             else:
                 _reverse(tour, pos, (a + length) % n, n - length)
         elif or_opt:  # the Or-opt move of largest gain, first of equals in (segment, c2, side)
-            for h in range(k):  # what does not depend on the segment, once per candidate
+            g_max = neg_inf
+            for si in range(n_seg):  # each segment's removal gain
+                ln = lens[si]
+                sa = (i1 - ln + 1) % n if back[si] else i1
+                pp, ss = tour[(sa - 1) % n], tour[(sa + ln) % n]
+                grem[si] = dist[pp, tour[sa]] + dist[tour[(sa + ln - 1) % n], ss] - dist[pp, ss]
+                g_max = max(g_max, grem[si])
+            for h in range(k):  # per candidate, once, where some segment may use it
+                if not cand_d[c1, h] < g_max:
+                    continue
                 c2 = cand[c1, h]
                 pc2[h] = pos[c2]
                 sc2[h] = tour[(pos[c2] + 1) % n]
                 pr2[h] = tour[(pos[c2] - 1) % n]
                 ga[h] = dist[c2, sc2[h]] - cand_d[c1, h]
                 gb[h] = dist[pr2[h], c2] - cand_d[c1, h]
-            g_top = max(ga.max(), gb.max())
             best = neg_inf
             b_si, b_h, b_side = 0, 0, 0
             for si in range(n_seg):
                 ln = lens[si]
+                g_rem = grem[si]
                 sa = (i1 - ln + 1) % n if back[si] else i1
-                first, last = tour[sa], tour[(sa + ln - 1) % n]
-                pp, ss = tour[(sa - 1) % n], tour[(sa + ln) % n]
-                g_rem = dist[pp, first] + dist[last, ss] - dist[pp, ss]
-                if not g_rem + g_top > (best if best > 0 else np.float32(0)):
-                    continue  # no candidate can make this segment's move pay (bound below)
-                other = first if back[si] else last
+                other = tour[sa] if back[si] else tour[(sa + ln - 1) % n]
                 for h in range(k):
+                    if not cand_d[c1, h] < g_rem:  # the gain criterion (see the docstring)
+                        continue
                     q = (pc2[h] - sa) % n
                     if q < ln:
                         continue
@@ -209,12 +215,13 @@ def dlb_batch(tours, orders, dist, cand, cand_d, max_moves, or_opt, full_check):
     k = cand.shape[1]
     pc2, sc2, pr2 = np.empty(k, np.int32), np.empty(k, np.int32), np.empty(k, np.int32)
     ga, gb = np.empty(k, np.float32), np.empty(k, np.float32)
+    grem = np.empty(_OR_LENS.shape[0], np.float32)
     lens = _OR_LENS
     back = _OR_BACK
     for i in range(m):
         moves[i] = _dlb_one(out[i], orders[i], dist, cand, cand_d, max_moves, or_opt,
                             full_check, lens, back, pos, rank, active, seg, ends, pc2, sc2,
-                            pr2, ga, gb)
+                            pr2, ga, gb, grem)
     return out, moves
 
 
@@ -234,11 +241,10 @@ def _host(ctx, out, tours, orders, dist, cand, cand_d, *, max_moves: int, or_opt
     del ctx
     args = [_readonly(x) for x in (tours, orders, dist, cand, cand_d)]
     out_tours, out_moves = np.asarray(out[0]), np.asarray(out[1])
-    m, n = args[0].shape[-2:]
     batch = np.broadcast_shapes(*(x.shape[:-2] for x in args))
     for idx in np.ndindex(*batch):
         def at(x, idx=idx):  # this batch element of x (index 0 along its size-1 dims)
-            return x[tuple(i if s > 1 else 0 for i, s in zip(idx, x.shape))]
+            return x[tuple(i if s > 1 else 0 for i, s in zip(idx, x.shape, strict=False))]
         out_tours[idx], out_moves[idx] = dlb_batch(*(at(x) for x in args), max_moves, or_opt,
                                                    full_check)
 

@@ -53,7 +53,7 @@ class TspSettings:
                             choices=("auto", "inversion", "swap", "none"))
     preset: str = setting("auto", "parameter set: default (evidence-based), mmas (as ACOTSP "
                           "runs it), paper (Table 4, every paper mechanism on); auto: mmas on "
-                          "a CPU, default on a GPU",
+                          "a CPU, on a GPU default below 700 cities and mmas from there",
                           choices=("auto", "default", "mmas", "paper"))
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
@@ -80,25 +80,30 @@ def colony_defaults(n: int, backend: str) -> ColonyDefaults:
     """The colony that ``--ants`` / ``--local-search`` / ``--ls-best-k`` / ``--preset`` left
     out (``auto``) resolve to for ``n`` cities.
 
-    On a CPU: 50 ants, ACOTSP's don't-look-bit 2-opt (native code, see
+    On a CPU: 50 ants, ACOTSP's don't-look-bit 2-opt + Or-opt (native code, see
     ``eaco_jax/ops/local_search_native.py``) on the 25 shortest tours, MMAS as ACOTSP runs it
     (preset "mmas": no crossover / mutation, tau_min = tau_max / 2n, restarts of converged
-    trails): best of the screen on pcb442 at 10 s on one core
-    (``experiments/results/tsp_ls_choice_pcb442_cpu_native.json``) and confirmed on 10 seeds
+    trails): the best of 20 settings on pcb442 at 10 s on one core, 3 seeds each
+    (``experiments/results/tsp_ls_choice_pcb442_cpu_native.json``), confirmed on 10 seeds
     beside ACOTSP (``tsp_time_to_quality_cpu_{pcb442,a280}_native.json``).
-    On a GPU: or-2opt, with 1,024 ants below 700 cities, 384 below 1,500 and 96 from there,
-    the "default" preset: the best colony sizes measured on one H100 in a time budget
+    On a GPU: or-2opt, with 1,024 ants below 700 cities, 384 below 1,500 and 96 from there:
+    the best colony sizes measured on one H100 in a time budget
     (``experiments/results/gpu/tsp_time_to_quality_h100_*_or2opt*.json`` and
     ``tsp_ttq_screen_h100_*``): pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants (10 seeds);
     pr1002 at 7.5 s, 384 of 256 / 384 / 512 / 1,024 (10 seeds); rat783 at 10 s, 384 of 192 /
     384 / 768 (screen); pr2392 at 20 s, 96 of 96 / 128 / 192 / 384 / 768 (2-seed screen). The
     bigger the tour, the longer each ant's local search, and the fewer ants fill a budget.
-    The 1,500 boundary lies between two measured sizes, not at a measured crossing.
+    From 700 cities the "mmas" preset (10 seeds each, seeds 100-109, against "default":
+    rat783 at 10 s 0.084% against 0.164%, pr1002 at 7.5 s 0.126% against 0.225%, pr2392 at
+    30 s 0.228% against 0.445%; ``..._mmas.json``); below, "default" (pcb442 at 3 s: 0.081%,
+    "mmas" 0.133%, "mmas" with ERX / inversion 0.086%). The 700 and 1,500 boundaries lie
+    between measured sizes, not at measured crossings.
     """
     if backend == "cpu":
         return ColonyDefaults(50, "2opt+oropt", 25, "mmas")
     ants = 1024 if n < 700 else 384 if n < 1500 else 96
-    return ColonyDefaults(ants, "or-2opt" if n >= 8 else "2opt", None, "default")  # Or-opt: 8+
+    return ColonyDefaults(ants, "or-2opt" if n >= 8 else "2opt", None,  # Or-opt: 8+ cities
+                          "default" if n < 700 else "mmas")
 
 
 def build(s: TspSettings) -> Built:
