@@ -40,7 +40,7 @@ class TspSettings:
     local_search: str = setting("auto", "local search (2opt: best-improvement batches on the "
                                 "candidate lists; or-2opt: the same + Or-opt; 2opt-dlb, "
                                 "2opt+oropt: ACOTSP-style with don't-look bits, + Or-opt; "
-                                "auto: or-2opt on a GPU, 2opt-dlb on a CPU)",
+                                "auto: or-2opt on a GPU, 2opt+oropt on a CPU)",
                                 choices=("auto", "2opt", "or-2opt", "2opt-dlb", "2opt+oropt",
                                          "none"))
     ls_best_k: int | None = setting(None, "local search on the k shortest tours of each "
