@@ -126,3 +126,21 @@ def test_colony_defaults_by_backend(tmp_path):
     record = json.loads(res.stdout.strip().splitlines()[-1])
     assert (record["ants"], record["local_search"], record["ls_best_k"], record["preset"]) == (
         50, "2opt+oropt", 25, "mmas")
+
+
+def test_checkpoint_stores_the_resolved_colony(tmp_path):
+    """A checkpointed run stores what auto resolved to (ants, local search, ls_best_k,
+    preset), so eaco resume rebuilds the same colony on another backend; resume continues."""
+    from eaco_jax.driver.checkpoint import read_meta
+
+    ck = tmp_path / "ck"
+    res = CliRunner().invoke(app, ["tsp", "burma14", "--iterations", "6", "--checkpoint-dir",
+                                   str(ck), "--checkpoint-every", "3", "--json"])
+    assert res.exit_code == 0, res.output
+    stored = read_meta(ck)["run_info"]["settings"]
+    assert (stored["ants"], stored["local_search"], stored["ls_best_k"], stored["preset"]) == (
+        50, "2opt+oropt", 25, "mmas")
+    again = CliRunner().invoke(app, ["resume", str(ck), "--json"])
+    assert again.exit_code == 0, again.output
+    assert (json.loads(again.stdout.strip().splitlines()[-1])["best_length"]
+            == json.loads(res.stdout.strip().splitlines()[-1])["best_length"])

@@ -127,6 +127,18 @@ def build(s: TspSettings) -> Built:
     return Built(problem, strategy, params, budget_of(s, s.iterations))
 
 
+def with_resolved_settings(checkpointing: Any, built: Built) -> Any:
+    """The checkpointing with the colony that ``auto`` resolved to in its stored settings, so
+    that ``eaco resume`` rebuilds this colony on any backend (not the resuming backend's)."""
+    info = getattr(checkpointing, "run_info", None)
+    if not info or not isinstance(info.get("settings"), dict):
+        return checkpointing
+    st = built.strategy
+    settings = {**info["settings"], "ants": int(st.num_ants), "local_search": st.local_search,
+                "ls_best_k": st.ls_best_k, "preset": st.preset}
+    return dataclasses.replace(checkpointing, run_info={**info, "settings": settings})
+
+
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
     optimum = built.problem.optimum
     if optimum is None:
@@ -143,6 +155,7 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
 
     check_out(s.out)
     built = build(s)
+    checkpointing = with_resolved_settings(checkpointing, built)
     with entered(built):
         result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
                           checkpointing=checkpointing, params=built.params, **built.budget)
