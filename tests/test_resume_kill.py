@@ -66,7 +66,10 @@ def _kill_and_resume(
     tmp: Path, trial: int, mid_write: bool, window: float, rng: random.Random
 ) -> tuple[dict, str]:
     ck, out = tmp / f"ck{trial}", tmp / f"out{trial}.npz"
-    for _attempt in range(6):  # a loaded machine may finish a run before the kill: retry
+    # Retry until the kill lands in the wanted phase: a loaded machine may finish the run first,
+    # or a write may begin between the last look and the signal. The phase is read after the
+    # kill, from the disk: an unfinished orbax temp folder stays behind only if a write was cut.
+    for _attempt in range(12):
         shutil.rmtree(ck, ignore_errors=True)
         out.unlink(missing_ok=True)
         proc = _start(out, ck)
@@ -85,13 +88,15 @@ def _kill_and_resume(
             time.sleep(rng.uniform(0.0, window))
             while proc.poll() is None and _writing(ck):
                 time.sleep(0.001)
-        during_write = _writing(ck)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
-        if proc.returncode == -signal.SIGKILL:
+        during_write = _writing(ck)
+        if proc.returncode == -signal.SIGKILL and during_write == mid_write:
             break
-        window *= 0.5
+        if proc.returncode != -signal.SIGKILL:
+            window *= 0.5
     assert proc.returncode == -signal.SIGKILL, "the run ended before it could be killed"
+    assert during_write == mid_write, "no kill landed in the wanted phase in 12 tries"
     assert not out.exists()
     steps = sorted(int(p) for p in os.listdir(ck) if p.isdigit()) if ck.exists() else []
     got = _finish(out, ck)
