@@ -14,6 +14,7 @@ from eaco_jax.ops.local_search import (
     SEGMENT_TO_END,
     SEGMENT_TO_FRONT,
     _apply_disjoint,
+    _greedy_disjoint,
     _or_opt_moves,
     two_opt,
 )
@@ -97,6 +98,25 @@ def test_moves_sharing_the_wrap_edge_are_not_both_applied(gains):
     assert int(applied) == 1
     best = moves[int(np.argmax(gains))]
     assert list(np.asarray(got)) == _apply_one(list(range(n)), *best)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_parallel_acceptance_is_the_sequential_greedy(seed):
+    """The rounds of :func:`_greedy_disjoint` accept what the one-by-one greedy accepts (entry
+    t taken when valid, clear of every taken s < t, and the budget not yet spent)."""
+    rng = np.random.default_rng(seed)
+    m = 64
+    lo = rng.integers(0, 90, m)
+    hi = lo + rng.integers(0, 12 if seed % 2 else 40, m)
+    valid = rng.random(m) < 0.8
+    overlap = (lo[:, None] - 1 <= hi[None, :]) & (lo[None, :] - 1 <= hi[:, None])
+    for budget in (m, 7, 1, 0):
+        want, taken = np.zeros(m, bool), 0
+        for t in range(m):
+            if valid[t] and not np.any(want & overlap[t]) and taken < budget:
+                want[t], taken = True, taken + 1
+        got = _greedy_disjoint(jnp.asarray(valid), jnp.asarray(overlap), jnp.int32(budget))
+        np.testing.assert_array_equal(np.asarray(got), want)
 
 
 def _or_moves_left(d, tour, cand):

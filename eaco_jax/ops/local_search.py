@@ -78,6 +78,32 @@ def _default_max_moves(n: int, max_moves: int | None) -> int:
 REVERSE, SEGMENT_TO_END, SEGMENT_TO_FRONT = 1, 2, 3
 
 
+def _greedy_disjoint(valid: Array, overlap: Array, budget: Array) -> Array:
+    """Greedy acceptance in index order, in parallel rounds: entry ``t`` is accepted when it is
+    ``valid`` and overlaps no accepted ``s < t``, and only the first ``budget`` are kept.
+
+    The sequential greedy (one decision per entry) costs ``len(valid)`` dependent steps, each a
+    few kernels on a GPU; here every round accepts all undecided entries that no undecided
+    better one overlaps, and drops those that overlap what was accepted. Entries decided in
+    a round are decided as the greedy decides them (their better overlapping entries are all
+    rejected), so the result is the greedy's, in as many rounds as the longest chain of
+    overlaps (a few), not ``len(valid)`` steps. Truncating to the first ``budget`` accepted
+    is the greedy with a budget: its decisions before the budget runs out are the same.
+    """
+    before = jnp.tril(overlap, -1)  # before[t, s]: s < t and they overlap
+
+    def round_(carry):
+        undecided, acc = carry
+        take = undecided & ~jnp.any(before & undecided[None, :], axis=1)
+        acc = acc | take
+        clash = jnp.any(overlap & take[None, :], axis=1)
+        return undecided & ~take & ~clash, acc
+
+    _, acc = jax.lax.while_loop(lambda c: jnp.any(c[0]), round_,
+                                (valid, jnp.zeros_like(valid)))
+    return acc & (jnp.cumsum(acc) <= budget)
+
+
 def _apply_disjoint(
     tour: Array,
     pos: Array,
@@ -110,11 +136,7 @@ def _apply_disjoint(
     overlap = overlap | ((tl[:, None] == 0) & (th[None, :] == n - 1))
     overlap = overlap | ((tl[None, :] == 0) & (th[:, None] == n - 1))
 
-    def accept(t, acc):
-        ok = (top_g[t] > 0) & ~jnp.any(acc & overlap[t]) & (acc.sum() < budget)
-        return acc.at[t].set(ok)
-
-    acc = jax.lax.fori_loop(0, top, accept, jnp.zeros(top, bool))
+    acc = _greedy_disjoint(top_g > 0, overlap, budget)
     one = acc.astype(jnp.int32)
     idx = jnp.arange(n, dtype=jnp.int32)
     if kind is None:  # reversals only: the piecewise reflection p -> lo + hi - p
