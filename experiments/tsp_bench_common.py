@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import os
 import platform
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -81,26 +82,32 @@ def run_timed(problem, strategy, seed: int, seconds: float, chunk: int,
     """One seeded run for ``seconds`` of search after compilation (``max_seconds``).
 
     Returns ``trace`` (``[seconds_after_compile, best_length, iterations]`` after every chunk,
-    the driver's compute clock, compilation excluded), ``compile_seconds`` (this call's; 0 when
-    the compiled chunk came from this process's cache) and ``best``.
+    the driver's compute clock, compilation excluded), ``trace_from_call`` (the same with the
+    wall time since ``minimize`` was called: initial state, compilation, host work between
+    chunks, all included), ``compile_seconds`` (this call's; 0 when the compiled chunk came
+    from this process's cache) and ``best``.
     """
     import numpy as np
 
     from eaco_jax import minimize
 
     trace: list[list] = []
+    from_call: list[list] = []
 
     def record(state, progress) -> None:
-        trace.append([round(progress.seconds, 4), float(np.min(np.asarray(state.best_cost))),
-                      int(progress.iterations)])
+        best = float(np.min(np.asarray(state.best_cost)))
+        trace.append([round(progress.seconds, 4), best, int(progress.iterations)])
+        from_call.append([round(time.perf_counter() - t_call, 4), best,
+                          int(progress.iterations)])
 
+    t_call = time.perf_counter()
     res = minimize(problem, strategy, seed=seed, iterations=max_iterations, chunk_size=chunk,
                    callback=record, max_seconds=seconds, params=params)
     chunk_s = float(np.median(np.diff([0.0] + [t for t, _, _ in trace]))) if trace else 0.0
     return {"seed": seed, "compile_seconds": float(res.compile_seconds),
             "chunk_seconds": chunk_s, "best": trace[-1][1] if trace else None,
             "iterations": trace[-1][2] if trace else 0, "stop_reason": res.stop_reason,
-            "trace": trace}
+            "trace": trace, "trace_from_call": from_call}
 
 
 def best_at(trace: list, t: float) -> float | None:

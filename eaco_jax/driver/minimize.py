@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from eaco_jax.driver import program_cache
 from eaco_jax.driver.history import merge_history
 from eaco_jax.driver.stop import Callback, Patience, Progress, StopRule, Target, WallTime
 from eaco_jax.errors import ConfigError, Interrupted, ProblemError
@@ -260,7 +261,11 @@ def compiled_chunk(strategy: Strategy, length: int, batched: bool, problem: Any,
     t0 = time.perf_counter()
     args = (problem, state, jnp.int32(length)) + ((_budget_arg(None),) if capped else ())
     fn = make_chunk_fn(strategy, length, batched, capped)
-    compiled = _polled(lambda: fn.lower(*args).compile(), interrupted)
+    disk_key = (program_cache.program_key(("chunk", strategy, length, batched, capped,
+                                           key[4], key[5], key[6]))
+                if program_cache.single_device((problem, state))
+                and program_cache.package_code_only(strategy, problem, state) else None)
+    compiled, _how = _polled(lambda: program_cache.compiled(fn, args, disk_key), interrupted)
     seconds = time.perf_counter() - t0
     _COMPILED[key] = compiled
     while len(_COMPILED) > _COMPILED_MAX:

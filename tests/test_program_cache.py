@@ -1,0 +1,124 @@
+"""Exported chunks on disk (``driver/program_cache.py``): a later run loads the program instead
+of tracing it and returns exactly what a traced run returns; programs that cannot be exported,
+damaged entries and code from outside the package are traced as before."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import pytest
+from test_driver import RandomSearch, Sphere
+
+import eaco_jax as ea
+from eaco_jax.driver import minimize as driver
+from eaco_jax.driver import program_cache
+from eaco_jax.problems import load_tsplib
+from eaco_jax.strategies.graph_eaco import GraphEACO
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    program_cache.set_folder(tmp_path)
+    driver._COMPILED.clear()
+    yield tmp_path
+    program_cache._folder = program_cache._UNSET
+    driver._COMPILED.clear()
+
+
+def _run(strategy, problem, seed=3):
+    res = ea.minimize(problem, strategy, seed=seed, iterations=12, chunk_size=4)
+    return float(res.best_cost), np.asarray(res.best_solution), res.history["best_cost"]
+
+
+def _same(a, b):
+    assert a[0] == b[0]
+    np.testing.assert_array_equal(a[1], b[1])
+    np.testing.assert_array_equal(a[2], b[2])
+
+
+def test_a_second_run_loads_the_program_without_tracing(cache, monkeypatch):
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=16, local_search="2opt")
+    program_cache.set_folder(None)
+    plain = _run(strategy, problem)
+    program_cache.set_folder(cache)
+    driver._COMPILED.clear()
+    first = _run(strategy, problem)
+    entries = list(cache.glob("*.jaxexport"))
+    assert len(entries) == 1
+    driver._COMPILED.clear()
+
+    def no_tracing(*args, **kwargs):
+        raise AssertionError("the chunk was traced although its program is on disk")
+
+    monkeypatch.setattr(driver, "make_chunk_fn", lambda *a, **k: no_tracing)
+    loaded = _run(strategy, problem)
+    _same(first, plain)
+    _same(loaded, plain)
+    # another colony size is another program
+    monkeypatch.undo()
+    program_cache.set_folder(cache)
+    _run(GraphEACO(num_ants=8, local_search="2opt"), problem)
+    assert len(list(cache.glob("*.jaxexport"))) == 2
+
+
+def test_a_fresh_process_loads_it(cache):
+    code = (
+        "import sys, jax\n"
+        "from eaco_jax.driver import program_cache, minimize as driver\n"
+        "from eaco_jax.problems import load_tsplib\n"
+        "from eaco_jax.strategies.graph_eaco import GraphEACO\n"
+        "import eaco_jax as ea\n"
+        "program_cache.set_folder(sys.argv[1])\n"
+        "how = []\n"
+        "real = program_cache.compiled\n"
+        "def spy(*a):\n"
+        "    out = real(*a); how.append(out[1]); return out\n"
+        "program_cache.compiled = spy\n"
+        "r = ea.minimize(load_tsplib('eil51'), GraphEACO(num_ants=16, local_search='2opt'),\n"
+        "                seed=3, iterations=12, chunk_size=4)\n"
+        "print(how[0], float(r.best_cost))\n")
+    env = {"JAX_PLATFORMS": "cpu"}
+    import os
+
+    env = {**os.environ, **env}
+    outs = [subprocess.run([sys.executable, "-c", code, str(cache)], capture_output=True,
+                           text=True, env=env, check=True).stdout.split()[-2:]
+            for _ in range(2)]
+    assert [o[0] for o in outs] == ["exported", "loaded"]
+    assert outs[0][1] == outs[1][1]
+
+
+def test_host_callbacks_are_marked_and_traced(cache):
+    problem = load_tsplib("eil51")
+    strategy = GraphEACO(num_ants=8, local_search="2opt+oropt")
+    if jax.default_backend() != "cpu":
+        pytest.skip("the native search (host callbacks) runs on a CPU backend")
+    program_cache.set_folder(None)
+    plain = _run(strategy, problem)
+    program_cache.set_folder(cache)
+    driver._COMPILED.clear()
+    _same(_run(strategy, problem), plain)
+    assert not list(cache.glob("*.jaxexport"))
+    assert len(list(cache.glob("*.traced"))) == 1
+
+
+def test_a_damaged_entry_is_rebuilt(cache):
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="none")
+    first = _run(strategy, problem)
+    (entry,) = cache.glob("*.jaxexport")
+    entry.write_bytes(entry.read_bytes()[:100])
+    driver._COMPILED.clear()
+    with pytest.warns(UserWarning, match="unreadable"):
+        again = _run(strategy, problem)
+    _same(again, first)
+    assert entry.stat().st_size > 100
+
+
+def test_code_from_outside_the_package_is_never_loaded(cache):
+    """A test's own strategy and problem: their source is not in the digest, so a changed
+    definition must never meet a stale program."""
+    _run(RandomSearch(num_ants=4), Sphere(lower=-jax.numpy.ones(3), upper=jax.numpy.ones(3)))
+    assert not list(cache.iterdir())
