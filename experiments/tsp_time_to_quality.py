@@ -14,6 +14,7 @@ process at a time: pin with ``taskset -c N`` and compare on the same core. Write
     taskset -c 1 python experiments/tsp_time_to_quality.py --instances pcb442 a280 \\
         --seconds 10 --checkpoints 1 3 10 --acotsp ~/ACOTSP/acotsp        # CPU, one core
     python experiments/tsp_time_to_quality.py --ants 4096 --data-dir DIR  # GPU
+    python experiments/tsp_time_to_quality.py --fresh-process --warm-first --ants 1024 ...
     python experiments/tsp_time_to_quality.py --tables results/gpu/tsp_time_to_quality_h100_*.json
 """
 
@@ -101,6 +102,27 @@ def from_call(runs: list[dict], optimum: float, checkpoints: list[float]) -> dic
                      [r.get("compile_seconds", 0.0) for r in runs])
 
 
+def run_in_fresh_process(args: argparse.Namespace, name: str, seed: int) -> dict:
+    """One seed in a new Python process (same settings and cache folder): the first call of a
+    fresh process, as a user's ``eaco tsp`` is, with JAX's caches as warm as they are."""
+    opts = {"--ants": args.ants, "--local-search": args.local_search,
+            "--ls-best-k": args.ls_best_k, "--preset": args.preset,
+            "--crossover": args.crossover, "--mutation": args.mutation,
+            "--params": args.params, "--chunk": args.chunk, "--seconds": args.seconds,
+            "--cache-dir": args.cache_dir}
+    argv = [sys.executable, __file__, "--instances", name, "--seeds", "1", "--first-seed",
+            str(seed), "--checkpoints", *map(str, args.checkpoints)]
+    for flag, value in opts.items():
+        if value is not None:
+            argv += [flag, str(value)]
+    for d in args.data_dir or []:
+        argv += ["--data-dir", str(d)]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run.json"
+        subprocess.run(argv + ["--out", str(out)], check=True, stdout=subprocess.DEVNULL)
+        return json.loads(out.read_text())["rows"][0]["runs"][0]
+
+
 def tables(paths: list[Path]) -> None:
     """Markdown rows (mean gap and 95% CI at each checkpoint, after compilation and from the
     call) recomputed from the traces of stored result files: the README's tables."""
@@ -179,6 +201,12 @@ def main() -> None:
     ap.add_argument("--acotsp-ants", type=int, default=25)
     ap.add_argument("--data-dir", type=Path, action="append")
     ap.add_argument("--cache-dir", type=Path, default=Path("out/jax_cache"))
+    ap.add_argument("--fresh-process", action="store_true",
+                    help="run every seed in its own new process (the first call of a process; "
+                         "'from the call' then includes everything a fresh process compiles)")
+    ap.add_argument("--warm-first", action="store_true",
+                    help="with --fresh-process: one unmeasured process first, so every measured "
+                         "one starts with warm caches")
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--tables", type=Path, nargs="+",
                     help="print the README's rows from stored result files and stop")
@@ -204,9 +232,14 @@ def main() -> None:
     for name in args.instances:
         problem = find_instance(name, args.data_dir)
         runs = []
+        if args.fresh_process and args.warm_first:  # fill the caches; not measured
+            run_in_fresh_process(args, name, args.first_seed)
         for seed in range(args.first_seed, args.first_seed + args.seeds):
-            params = params_with(strategy.default_params(problem), overrides, "--params: ")
-            r = run_timed(problem, strategy, seed, args.seconds, args.chunk, params=params)
+            if args.fresh_process:
+                r = run_in_fresh_process(args, name, seed)
+            else:
+                params = params_with(strategy.default_params(problem), overrides, "--params: ")
+                r = run_timed(problem, strategy, seed, args.seconds, args.chunk, params=params)
             runs.append(r)
             print(f"{name:>8} {label} seed {seed}: {100 * (r['best'] / problem.optimum - 1):.3f}%"
                   f" after {r['iterations']} iterations, compile {r['compile_seconds']:.1f} s",
