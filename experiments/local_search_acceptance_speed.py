@@ -45,9 +45,11 @@ def time_colony(problem, ants: int, local_search: str, iterations: int, seed: in
 
     from eaco_jax import minimize
     from eaco_jax.driver import minimize as driver
+    from eaco_jax.driver import program_cache
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
-    driver._COMPILED.clear()  # each variant traces and compiles its own chunk
+    driver.clear_compiled()  # each variant traces and compiles its own chunk
+    program_cache.set_folder(None)  # a loaded program would not see the patched acceptance
     jax.clear_caches()
     strategy = GraphEACO(num_ants=ants, local_search=local_search)
     t0 = time.perf_counter()

@@ -345,20 +345,58 @@ def initial_state(
     of them (a batch of settings): then row ``r`` belongs to ``params[r // len(seeds)]`` with
     seed ``seeds[r % len(seeds)]``. Concrete params are checked against their ranges first.
     """
+    problem = strategy.prepare(problem)
     if isinstance(params, list | tuple):
         for i, p in enumerate(params):
             strategy.check_params(p, where=f"params[{i}]: " if len(params) > 1 else "")
         stacked = stack_params(list(params))
         flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
         keys = jnp.stack([jax.random.key(int(s)) for s in list(seeds) * len(params)])
-        return jax.vmap(lambda k, p: strategy.init(k, problem, p))(keys, flat)
+        return _compiled_init(strategy, "per_row", problem, keys, flat)(keys, problem, flat)
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
     if params is None:
         params = strategy.default_params(problem)
     strategy.check_params(params)
-    if len(seeds) == 1:
-        return strategy.init(keys[0], problem, params)
-    return jax.vmap(lambda k: strategy.init(k, problem, params))(keys)
+    rows = "one" if len(seeds) == 1 else "shared"
+    return _compiled_init(strategy, rows, problem, keys, params)(keys, problem, params)
+
+
+_INITS: collections.OrderedDict[Any, Any] = collections.OrderedDict()
+
+
+def clear_compiled() -> None:
+    """Forget this process's compiled chunks and initialisers (the next run compiles again,
+    or loads from the on-disk caches)."""
+    _COMPILED.clear()
+    _INITS.clear()
+
+
+def _compiled_init(strategy: Strategy, rows: str, problem: Any, keys: jax.Array,
+                   params: Any) -> Callable:
+    """The compiled ``(keys, problem, params) -> state`` (through the on-disk program cache):
+    ``rows`` "one" (one seed, an unbatched state), "shared" (a row per key, one params) or
+    "per_row" (a row per key and params row)."""
+    key = (strategy, rows, jax.config.jax_enable_x64, _signature(problem), _signature(keys),
+           _signature(params))
+    if key in _INITS:
+        _INITS.move_to_end(key)
+        return _INITS[key]
+
+    def init(keys, problem, params):
+        if rows == "one":
+            return strategy._init_jit(keys[0], problem, params)
+        axes = 0 if rows == "per_row" else None
+        return jax.vmap(lambda k, p: strategy._init_jit(k, problem, p), (0, axes))(keys, params)
+
+    args = (keys, problem, params)
+    disk_key = (program_cache.program_key(("init",) + key)
+                if program_cache.single_device(args)
+                and program_cache.package_code_only(strategy, problem, params) else None)
+    compiled, _how = program_cache.compiled(jax.jit(init), args, disk_key)
+    _INITS[key] = compiled
+    while len(_INITS) > _COMPILED_MAX:
+        _INITS.popitem(last=False)
+    return compiled
 
 
 def stack_params(params: Sequence[Any]) -> Any:

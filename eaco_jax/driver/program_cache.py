@@ -154,40 +154,64 @@ def compiled(fn: Callable, args: tuple, key: str | None) -> tuple[Callable, str]
     if where is None or key is None:
         return fn.lower(*args).compile(), "traced"
     leaves, in_def = jax.tree.flatten(args)
+    in_keys = _key_impls(leaves)
+    plain = _key_data(leaves, in_keys)  # PRNG keys cross the exported interface as uint32
     entry, mark = where / f"{key}{_SUFFIX}", where / f"{key}{_MARK}"
     if entry.is_file():
         try:
             blob = pickle.loads(entry.read_bytes())
             exp = export.deserialize(bytearray(blob["exported"]))
-            out_def = blob["out_tree"]
+            out_def, out_keys = blob["out_tree"], blob["out_keys"]
         except Exception as err:  # noqa: BLE001 - a damaged entry is rebuilt, as JAX's cache does
             warnings.warn(f"eaco_jax program cache: {entry.name} unreadable ({err}); "
                           "tracing again", stacklevel=3)
             entry.unlink(missing_ok=True)
         else:
-            return _wrap(jax.jit(exp.call).lower(*leaves).compile(), out_def), "loaded"
+            call = jax.jit(exp.call).lower(*plain).compile()
+            return _wrap(call, in_keys, out_def, out_keys), "loaded"
     if mark.is_file():
         return fn.lower(*args).compile(), "traced"
     box: dict[str, Any] = {}
 
     def flat(*xs):
+        xs = _wrap_keys(xs, in_keys)
         out, box["out_tree"] = jax.tree.flatten(fn(*jax.tree.unflatten(in_def, xs)))
-        return out
+        box["out_keys"] = _key_impls(out)
+        return _key_data(out, box["out_keys"])
 
     checks = [export.DisabledSafetyCheck.custom_call(t) for t in _UNSTABLE_TARGETS]
     try:
-        exp = export.export(jax.jit(flat), disabled_checks=checks)(*leaves)
+        exp = export.export(jax.jit(flat), disabled_checks=checks)(*plain)
         data = exp.serialize()
     except NotImplementedError as err:  # host callbacks have no serialised form
         _write(mark, str(err).encode())
         return fn.lower(*args).compile(), "traced"
-    _write(entry, pickle.dumps({"exported": bytes(data), "out_tree": box["out_tree"]}))
-    return _wrap(jax.jit(exp.call).lower(*leaves).compile(), box["out_tree"]), "exported"
+    _write(entry, pickle.dumps({"exported": bytes(data), "out_tree": box["out_tree"],
+                                "out_keys": box["out_keys"]}))
+    call = jax.jit(exp.call).lower(*plain).compile()
+    return _wrap(call, in_keys, box["out_tree"], box["out_keys"]), "exported"
 
 
-def _wrap(call: Callable, out_def: Any) -> Callable:
+def _key_impls(leaves: list) -> list[str | None]:
+    """The PRNG implementation of each typed-key leaf (None for other leaves)."""
+    return [str(jax.random.key_impl(x))
+            if jax.dtypes.issubdtype(getattr(x, "dtype", None), jax.dtypes.prng_key) else None
+            for x in leaves]
+
+
+def _key_data(leaves: list, impls: list) -> list:
+    return [jax.random.key_data(x) if impl else x for x, impl in zip(leaves, impls, strict=True)]
+
+
+def _wrap_keys(leaves: Any, impls: list) -> list:
+    return [jax.random.wrap_key_data(x, impl=impl) if impl else x
+            for x, impl in zip(leaves, impls, strict=True)]
+
+
+def _wrap(call: Callable, in_keys: list, out_def: Any, out_keys: list) -> Callable:
     def run(*args):
-        return jax.tree.unflatten(out_def, call(*jax.tree.leaves(args)))
+        out = call(*_key_data(jax.tree.leaves(args), in_keys))
+        return jax.tree.unflatten(out_def, _wrap_keys(out, out_keys))
 
     return run
 
