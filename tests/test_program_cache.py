@@ -122,3 +122,36 @@ def test_code_from_outside_the_package_is_never_loaded(cache):
     definition must never meet a stale program."""
     _run(RandomSearch(num_ants=4), Sphere(lower=-jax.numpy.ones(3), upper=jax.numpy.ones(3)))
     assert not list(cache.iterdir())
+
+
+def test_batched_seeds_settings_and_capped_runs_load_the_same(cache, monkeypatch):
+    """Rows of seeds x settings and a max_evaluations cap: other programs (vmapped keys,
+    a budget argument), the same equality."""
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="none")
+    p0 = strategy.default_params(problem)
+    settings = [p0, p0.replace(q0=jax.numpy.asarray(0.5, p0.q0.dtype))]
+
+    def go():
+        res = ea.minimize(problem, strategy, seed=[1, 2], params=settings,
+                          max_evaluations=8 * 9, chunk_size=4)
+        return np.asarray(res.best_cost), np.asarray(res.best_solution), res.history["best_cost"]
+
+    program_cache.set_folder(None)
+    plain = go()
+    program_cache.set_folder(cache)
+    driver.clear_compiled()
+    go()
+    assert len(list(cache.glob("*.jaxexport"))) == 2
+    driver.clear_compiled()
+    how, real = [], program_cache.compiled
+
+    def spy(*args):
+        out = real(*args)
+        how.append(out[1])
+        return out
+
+    monkeypatch.setattr(program_cache, "compiled", spy)
+    loaded = go()
+    assert how == ["loaded", "loaded"]
+    for a, b in zip(plain, loaded, strict=True):
+        np.testing.assert_array_equal(a, b)
