@@ -116,6 +116,18 @@ def test_second_call_compiles_nothing():
     assert other.compile_seconds > 0.0  # another static configuration compiles
 
 
+def test_compile_seconds_count_the_initial_state():
+    """The initial state's program is compiled too and counted: with the chunk still
+    compiled in this process and the initialiser forgotten, a call reports its compile."""
+    from eaco_jax.driver import minimize as driver
+
+    ea.minimize(_problem(), RandomSearch(num_ants=7), seed=0, iterations=8, chunk_size=4)
+    driver._INITS.clear()
+    again = ea.minimize(_problem(), RandomSearch(num_ants=7), seed=0, iterations=8,
+                        chunk_size=4)
+    assert again.compile_seconds > 0.0
+
+
 def test_target_uses_full_precision_feasible_objective():
     """At g10's size float32 steps are 5e-4: the target compares float64 best_f."""
     from eaco_jax.driver.stop import Progress, Target

@@ -70,6 +70,8 @@ class Result:
     have charged more than the budget left), ``"interrupted"`` or the name of the stop rule
     that fired. ``evaluations`` is what each row was charged (the colony plus what a strategy
     charges itself, e.g. gradient repair), never more than ``max_evaluations``.
+    ``compile_seconds`` is what this call spent compiling or loading programs (the initial
+    state's and the chunks'; 0 when the process had them), ``seconds`` that plus compute.
 
     The returned solution is re-checked on the host: ``best_cost`` is a TSP tour's exact
     length, and for constrained problems ``f``, ``violation`` and ``feasible`` come from a
@@ -345,6 +347,12 @@ def initial_state(
     of them (a batch of settings): then row ``r`` belongs to ``params[r // len(seeds)]`` with
     seed ``seeds[r % len(seeds)]``. Concrete params are checked against their ranges first.
     """
+    return _initial_state(strategy, problem, seeds, params)[0]
+
+
+def _initial_state(strategy: Strategy, problem: Any, seeds: Sequence[int],
+                   params: Any | None = None) -> tuple[State, float]:
+    """:func:`initial_state` and the seconds spent compiling (or loading) its program."""
     problem = strategy.prepare(problem)
     if isinstance(params, list | tuple):
         for i, p in enumerate(params):
@@ -352,13 +360,15 @@ def initial_state(
         stacked = stack_params(list(params))
         flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
         keys = jnp.stack([jax.random.key(int(s)) for s in list(seeds) * len(params)])
-        return _compiled_init(strategy, "per_row", problem, keys, flat)(keys, problem, flat)
+        init, seconds = _compiled_init(strategy, "per_row", problem, keys, flat)
+        return init(keys, problem, flat), seconds
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
     if params is None:
         params = strategy.default_params(problem)
     strategy.check_params(params)
     rows = "one" if len(seeds) == 1 else "shared"
-    return _compiled_init(strategy, rows, problem, keys, params)(keys, problem, params)
+    init, seconds = _compiled_init(strategy, rows, problem, keys, params)
+    return init(keys, problem, params), seconds
 
 
 _INITS: collections.OrderedDict[Any, Any] = collections.OrderedDict()
@@ -372,15 +382,17 @@ def clear_compiled() -> None:
 
 
 def _compiled_init(strategy: Strategy, rows: str, problem: Any, keys: jax.Array,
-                   params: Any) -> Callable:
-    """The compiled ``(keys, problem, params) -> state`` (through the on-disk program cache):
+                   params: Any) -> tuple[Callable, float]:
+    """The compiled ``(keys, problem, params) -> state`` (through the on-disk program cache)
+    and the seconds spent on it now (0.0 when this process had it):
     ``rows`` "one" (one seed, an unbatched state), "shared" (a row per key, one params) or
     "per_row" (a row per key and params row)."""
     key = (strategy, rows, jax.config.jax_enable_x64, _signature(problem), _signature(keys),
            _signature(params))
     if key in _INITS:
         _INITS.move_to_end(key)
-        return _INITS[key]
+        return _INITS[key], 0.0
+    t0 = time.perf_counter()
 
     def init(keys, problem, params):
         if rows == "one":
@@ -396,7 +408,7 @@ def _compiled_init(strategy: Strategy, rows: str, problem: Any, keys: jax.Array,
     _INITS[key] = compiled
     while len(_INITS) > _COMPILED_MAX:
         _INITS.popitem(last=False)
-    return compiled
+    return compiled, time.perf_counter() - t0
 
 
 def stack_params(params: Sequence[Any]) -> Any:
@@ -629,11 +641,11 @@ def minimize(
         if params is None:
             params = strategy.default_params(problem)
         check_state_memory(strategy, problem, rows, params)
-        state = initial_state(strategy, problem, seeds, params)
+        state, init_seconds = _initial_state(strategy, problem, seeds, params)
         row_seeds = seeds * n_settings
         return run(strategy, problem, state, total=total, chunk=chunk, seeds=row_seeds,
                    rules=rules, progress=progress, checkpointing=checkpointing,
-                   max_evaluations=max_evaluations)
+                   max_evaluations=max_evaluations, compile_seconds=init_seconds)
 
 
 def _exhausted(strategy: Strategy, problem: Any, state: State, budget: int | None) -> bool:
@@ -697,10 +709,12 @@ def run(
     progress: bool = False,
     checkpointing: Checkpointing | None = None,
     max_evaluations: int | None = None,
+    compile_seconds: float = 0.0,
 ) -> Result:
     """Run ``state`` (one row per entry of ``seeds``) in chunks to ``total`` iterations
     (and, with ``max_evaluations``, until no row can start another iteration), or from the
-    checkpoint of this same run in ``checkpointing.directory``."""
+    checkpoint of this same run in ``checkpointing.directory``. ``compile_seconds``: spent
+    before (the initial state's program), counted in the result's."""
     batched = len(seeds) > 1
     capped = max_evaluations is not None
     budget = _budget_arg(max_evaluations)
@@ -733,7 +747,7 @@ def run(
                 total = done
 
     rules = rules or []
-    compile_seconds = run_seconds = 0.0
+    run_seconds = 0.0
     start = done
     reason = "iterations"
     bar = None
