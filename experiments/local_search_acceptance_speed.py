@@ -15,13 +15,12 @@ table and JSON. The sequential version lives only here, as the reference being r
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from tsp_bench_common import device_info, find_instance  # noqa: E402
+from tsp_bench_common import find_instance, write_results  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "local_search_acceptance_speed.json"
 
@@ -99,9 +98,7 @@ def main() -> None:
                                / got["rounds"]["ms_per_iteration"])
         print(f"{'':>8} speed-up {rows[-1]['speedup']:.2f}x, same best: "
               f"{rows[-1]['same_best_as_sequential']}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"info": device_info(), "argv": sys.argv[1:], "rows": rows},
-                                   indent=1) + "\n")
+    write_results(args.out, rows)
     print(f"wrote {args.out}")
 
 

@@ -10,7 +10,6 @@ table; writes ``results/local_search_native_speed.json``. Run pinned to one core
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -18,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from tsp_bench_common import device_info, find_instance  # noqa: E402
+from tsp_bench_common import find_instance, write_results  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "local_search_native_speed.json"
 
@@ -67,11 +66,8 @@ def main() -> None:
             print(f"{name:>8} {label:>11} {1e3 * times['xla']:8.1f} "
                   f"{1e3 * times['native']:10.1f} {times['xla'] / times['native']:8.1f}"
                   f" {str(same):>10}", flush=True)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"what": "dlb local search of random tours from the same "
-                                            "state, median of repeats after a warm-up call",
-                                    "info": device_info(), "argv": sys.argv[1:],
-                                    "rows": rows}, indent=1))
+    write_results(args.out, rows, what="dlb local search of random tours from the same "
+                  "state, median of repeats after a warm-up call")
     print(f"wrote {args.out}")
 
 

@@ -127,7 +127,7 @@ def main() -> None:
     ap.add_argument("--what", choices=["driver", "phases"], default="driver")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args()
-    from tsp_bench_common import device_info
+    from tsp_bench_common import write_results
 
     rows = []
     modes = (("jit", "export") if args.what == "phases"
@@ -141,8 +141,7 @@ def main() -> None:
                 print(json.dumps({k: round(v, 3) if isinstance(v, float) else v
                                   for k, v in r.items()}), flush=True)
     if args.out:
-        args.out.write_text(json.dumps({"info": device_info(), "argv": sys.argv[1:],
-                                        "rows": rows}, indent=1) + "\n")
+        write_results(args.out, rows)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,8 @@
   ``optima.csv``.
 * :func:`run_timed` runs ``eaco_jax.minimize(..., max_seconds=S)`` and records the best
   length after every chunk (a ``callback``). Compile time is reported apart.
-* :func:`device_info` names the device and versions for the JSON files.
+* :func:`device_info` names the device and versions for the JSON files, which
+  :func:`write_results` writes.
 """
 
 from __future__ import annotations
@@ -63,6 +64,17 @@ def device_info() -> dict:
             "host": platform.node(), "cpus": os.cpu_count(),
             "affinity": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
             else None}
+
+
+def write_results(path: Path, rows: list, **extra) -> None:
+    """The benchmarks' JSON file: ``extra`` fields, device and versions, the command line's
+    arguments and the rows."""
+    import json
+    import sys
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({**extra, "info": device_info(), "argv": sys.argv[1:],
+                                "rows": rows}, indent=1) + "\n")
 
 
 def enable_compile_cache(path: Path | None) -> None:

@@ -14,7 +14,6 @@ Writes ``experiments/results/tsp_ls_choice.json`` and prints a table of mean gap
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 from pathlib import Path
@@ -22,10 +21,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from tsp_bench_common import (  # noqa: E402
     best_at,
-    device_info,
     enable_compile_cache,
     find_instance,
     run_timed,
+    write_results,
 )
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_ls_choice.json"
@@ -91,9 +90,7 @@ def main() -> None:
         print(f"{r['instance']:>8} {r['config']:>20} {r['seconds']:5.1f} "
               f"{r['mean_gap_percent']:10.3f} {half if half is not None else float('nan'):9.3f} "
               f"{r['mean_iterations']:7.0f}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"info": device_info(), "argv": sys.argv[1:], "rows": rows},
-                                   indent=1) + "\n")
+    write_results(args.out, rows)
     print(f"wrote {args.out}")
 
 

@@ -33,10 +33,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from evidence_stats import t_ci  # noqa: E402
 from tsp_bench_common import (  # noqa: E402
     best_at,
-    device_info,
     enable_compile_cache,
     find_instance,
     run_timed,
+    write_results,
 )
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_time_to_quality.json"
@@ -281,9 +281,7 @@ def main() -> None:
             a = r["from_call"][str(t)]["mean_gap_percent"]
             cells += f"{f'({a:.3f})':>9}" if a is not None else f"{'(-)':>9}"
         print(f"{'':>8} {'':>34}{cells}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"info": device_info(), "argv": sys.argv[1:], "rows": rows},
-                                   indent=1) + "\n")
+    write_results(args.out, rows)
     png = args.out.with_suffix(".png")
     plot(rows, png)
     print(f"wrote {args.out} and {png}")
