@@ -255,24 +255,31 @@ def compiled_chunk(strategy: Strategy, length: int, batched: bool, problem: Any,
     With ``interrupted`` (a poll), compilation runs in a worker thread and
     :class:`_Interrupt` is raised as soon as the poll says so.
     """
-    key = (strategy, length, batched, capped, jax.config.jax_enable_x64, _signature(problem),
-           _signature(state))
-    if key in _COMPILED:
-        _COMPILED.move_to_end(key)
-        return _COMPILED[key], 0.0
-    t0 = time.perf_counter()
+    key = ("chunk", strategy, length, batched, capped, jax.config.jax_enable_x64,
+           _signature(problem), _signature(state))
     args = (problem, state, jnp.int32(length)) + ((_budget_arg(None),) if capped else ())
-    fn = make_chunk_fn(strategy, length, batched, capped)
-    disk_key = (program_cache.program_key(("chunk", strategy, length, batched, capped,
-                                           key[4], key[5], key[6]))
-                if program_cache.single_device((problem, state))
-                and program_cache.package_code_only(strategy, problem, state) else None)
-    compiled, _how = _polled(lambda: program_cache.compiled(fn, args, disk_key), interrupted)
-    seconds = time.perf_counter() - t0
-    _COMPILED[key] = compiled
-    while len(_COMPILED) > _COMPILED_MAX:
-        _COMPILED.popitem(last=False)
-    return compiled, seconds
+    return _program(_COMPILED, key, lambda: make_chunk_fn(strategy, length, batched, capped),
+                    args, strategy, interrupted)
+
+
+def _program(cache: collections.OrderedDict, key: tuple, make: Callable[[], Callable],
+             args: tuple, strategy: Strategy,
+             interrupted: Callable[[], bool] | None = None) -> tuple[Any, float]:
+    """This process's compiled program for ``key`` (an LRU of :data:`_COMPILED_MAX` in
+    ``cache``), else ``make()`` compiled for ``args`` now, through the on-disk program cache
+    where the program may be kept there; and the seconds spent now (0.0 from ``cache``)."""
+    if key in cache:
+        cache.move_to_end(key)
+        return cache[key], 0.0
+    t0 = time.perf_counter()
+    disk_key = (program_cache.program_key(key) if program_cache.single_device(args)
+                and program_cache.package_code_only(strategy, *args) else None)
+    compiled, _how = _polled(lambda: program_cache.compiled(make(), args, disk_key),
+                             interrupted)
+    cache[key] = compiled
+    while len(cache) > _COMPILED_MAX:
+        cache.popitem(last=False)
+    return compiled, time.perf_counter() - t0
 
 
 class _Interrupt(Exception):
@@ -387,12 +394,8 @@ def _compiled_init(strategy: Strategy, rows: str, problem: Any, keys: jax.Array,
     and the seconds spent on it now (0.0 when this process had it):
     ``rows`` "one" (one seed, an unbatched state), "shared" (a row per key, one params) or
     "per_row" (a row per key and params row)."""
-    key = (strategy, rows, jax.config.jax_enable_x64, _signature(problem), _signature(keys),
-           _signature(params))
-    if key in _INITS:
-        _INITS.move_to_end(key)
-        return _INITS[key], 0.0
-    t0 = time.perf_counter()
+    key = ("init", strategy, rows, jax.config.jax_enable_x64, _signature(problem),
+           _signature(keys), _signature(params))
 
     def init(keys, problem, params):
         if rows == "one":
@@ -400,15 +403,7 @@ def _compiled_init(strategy: Strategy, rows: str, problem: Any, keys: jax.Array,
         axes = 0 if rows == "per_row" else None
         return jax.vmap(lambda k, p: strategy._init_jit(k, problem, p), (0, axes))(keys, params)
 
-    args = (keys, problem, params)
-    disk_key = (program_cache.program_key(("init",) + key)
-                if program_cache.single_device(args)
-                and program_cache.package_code_only(strategy, problem, params) else None)
-    compiled, _how = program_cache.compiled(jax.jit(init), args, disk_key)
-    _INITS[key] = compiled
-    while len(_INITS) > _COMPILED_MAX:
-        _INITS.popitem(last=False)
-    return compiled, time.perf_counter() - t0
+    return _program(_INITS, key, lambda: jax.jit(init), (keys, problem, params), strategy)
 
 
 def stack_params(params: Sequence[Any]) -> Any:
