@@ -106,7 +106,8 @@ def run_in_fresh_process(args: argparse.Namespace, name: str, seed: int) -> dict
     """One seed in a new Python process (same settings and cache folder): the first call of a
     fresh process, as a user's ``eaco tsp`` is, with JAX's caches as warm as they are."""
     opts = {"--ants": args.ants, "--local-search": args.local_search,
-            "--ls-best-k": args.ls_best_k, "--preset": args.preset,
+            "--ls-best-k": args.ls_best_k, "--ls-moves-per-step": args.ls_moves_per_step,
+            "--max-ls-moves": args.max_ls_moves, "--preset": args.preset,
             "--crossover": args.crossover, "--mutation": args.mutation,
             "--params": args.params, "--chunk": args.chunk, "--seconds": args.seconds,
             "--cache-dir": args.cache_dir}
@@ -189,6 +190,11 @@ def main() -> None:
     ap.add_argument("--ants", type=int, default=40)
     ap.add_argument("--local-search", default="2opt")
     ap.add_argument("--ls-best-k", type=int)
+    ap.add_argument("--ls-moves-per-step", type=int,
+                    help="2opt / or-2opt: most moves one batched step applies per tour "
+                         "(default: GraphEACO's)")
+    ap.add_argument("--max-ls-moves", type=int,
+                    help="cap on improving moves per tour and iteration (default: none)")
     ap.add_argument("--preset", default="default", help="GraphEACO preset (default/mmas/paper)")
     ap.add_argument("--crossover", default="auto", help="GraphEACO crossover (auto/erx/none)")
     ap.add_argument("--mutation", default="auto",
@@ -220,10 +226,15 @@ def main() -> None:
 
     strategy = GraphEACO(num_ants=args.ants, local_search=args.local_search,
                          ls_best_k=args.ls_best_k, crossover=args.crossover,
-                         mutation=args.mutation, preset=args.preset)
+                         max_ls_moves=args.max_ls_moves, mutation=args.mutation,
+                         preset=args.preset,
+                         **({} if args.ls_moves_per_step is None
+                            else {"ls_moves_per_step": args.ls_moves_per_step}))
     overrides = parse_overrides(args.params)
     label = f"eaco {args.ants} ants {args.local_search}" + (
         f" best{args.ls_best_k}" if args.ls_best_k else "") + (
+        f" mps{args.ls_moves_per_step}" if args.ls_moves_per_step else "") + (
+        f" cap{args.max_ls_moves}" if args.max_ls_moves else "") + (
         f" {args.preset}" if args.preset != "default" else "") + (
         f" cx {args.crossover}" if args.crossover != "auto" else "") + (
         f" mut {args.mutation}" if args.mutation != "auto" else "") + (

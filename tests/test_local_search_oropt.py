@@ -219,3 +219,21 @@ def test_colony_with_or_2opt(best):
     tour = np.asarray(res["or-2opt"].best_solution)
     assert sorted(tour.tolist()) == list(range(51))
     assert float(res["or-2opt"].best_cost) < float(res["2opt"].best_cost)
+
+
+def test_colony_passes_moves_per_step_to_the_search():
+    """GraphEACO.ls_moves_per_step is the batched search's moves_per_step: its local search
+    gives two_opt's tours for that value, which differ between 1 and the default."""
+    from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    p = load_tsplib("eil51")
+    tours = jnp.asarray(_tours(51, 6, 11))
+    got = {}
+    for per_step in (1, GraphEACO().ls_moves_per_step):
+        st = GraphEACO(num_ants=6, local_search="or-2opt", ls_moves_per_step=per_step)
+        got[per_step] = np.asarray(st._local_search(tours, p))
+        want = two_opt(tours, p.dist, p.neighbors, or_opt=True, moves_per_step=per_step)
+        np.testing.assert_array_equal(got[per_step], np.asarray(want))
+    assert not np.array_equal(*got.values())
+    with pytest.raises(ValueError, match="ls_moves_per_step must be >= 1"):
+        GraphEACO(ls_moves_per_step=0)

@@ -202,6 +202,11 @@ class GraphEACO(Strategy):
     max_ls_moves: int | None = None
     #: local search on the ls_best_k shortest tours of each iteration only (None: all ants)
     ls_best_k: int | None = None
+    #: "2opt" / "or-2opt": most disjoint improving moves one batched step applies per tour
+    #: (1 = classic best improvement; see ops/local_search.py). 64 from the ablation in
+    #: experiments/local_search_steps.py and tsp_time_to_quality.py (H100, 10 seeds): pr1002
+    #: at 7.5 s 0.063% against 0.117% with 32 and 0.143% with 128; pcb442 at 3 s equal
+    ls_moves_per_step: int = 64
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
     #: how the tours are built ("auto", "lazy", "dense", "backup", "compact", "kernel"; see
@@ -226,6 +231,8 @@ class GraphEACO(Strategy):
             raise ConfigError(f"num_ants must be >= 1, got {self.num_ants}")
         if self.ls_best_k is not None and self.ls_best_k < 1:
             raise ConfigError(f"ls_best_k must be >= 1 or None, got {self.ls_best_k}")
+        if self.ls_moves_per_step < 1:
+            raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
@@ -438,6 +445,7 @@ class GraphEACO(Strategy):
         if self.local_search in ("2opt", "or-2opt"):
             def improve(t):
                 return local_search.two_opt(t, dist, neighbors, self.max_ls_moves,
+                                            moves_per_step=self.ls_moves_per_step,
                                             or_opt=self.local_search == "or-2opt")
         else:
             def improve(t):
