@@ -6,7 +6,8 @@ kernels). This script polishes one colony's first-iteration tours (``GraphEACO``
 construction from uniform pheromone, alpha 1, beta 2, on the candidate lists) with each
 ``moves_per_step`` and move cap, and prints ms per call (median after compilation), the
 steps of the slowest tour and of the mean one, moves per tour and the mean gap after the
-search. It is the evidence behind ``GraphEACO.ls_moves_per_step``'s default.
+search, also over ``--neighbors`` (the first K candidates per city). It is the evidence
+behind ``GraphEACO.ls_moves_per_step``'s default.
 
     python experiments/local_search_steps.py --cases pcb442:1024 pr1002:384 \\
         --moves-per-step 8 16 32 64 128 256
@@ -15,6 +16,7 @@ search. It is the evidence behind ``GraphEACO.ls_moves_per_step``'s default.
 from __future__ import annotations
 
 import argparse
+import itertools
 import statistics
 import sys
 import time
@@ -27,7 +29,7 @@ RESULTS = Path(__file__).resolve().parent / "results" / "local_search_steps.json
 
 
 def profile(problem, ants: int, per_step: int, cap: int | None, or_opt: bool,
-            seed: int, repeats: int) -> dict:
+            seed: int, repeats: int, neighbors: int | None = None) -> dict:
     """One setting on one colony: time, steps, moves and the gap after the search."""
     import jax
     import jax.numpy as jnp
@@ -41,7 +43,7 @@ def profile(problem, ants: int, per_step: int, cap: int | None, or_opt: bool,
     n = dist.shape[0]
     tours = build(jax.random.key(seed), jnp.ones((n, n), jnp.float32), problem, ants,
                   jnp.float32(1.0), jnp.float32(2.0))
-    cand = ls._candidates(dist, problem.neighbors)
+    cand = ls._candidates(dist, problem.neighbors)[:, :neighbors]
     cand_d = dist[jnp.arange(n)[:, None], cand]
     mm = ls._default_max_moves(n, cap)
 
@@ -76,6 +78,8 @@ def main() -> None:
     ap.add_argument("--moves-per-step", type=int, nargs="+", default=[8, 16, 32, 64, 128])
     ap.add_argument("--caps", nargs="+", default=["none"],
                     help="move caps per tour ('none' = the default 4 n)")
+    ap.add_argument("--neighbors", type=int, nargs="+", default=[0],
+                    help="candidates per city the search scans (0: all of the lists)")
     ap.add_argument("--local-search", choices=["2opt", "or-2opt"], default="or-2opt")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeats", type=int, default=5)
@@ -84,22 +88,23 @@ def main() -> None:
     args = ap.parse_args()
 
     rows = []
-    print(f"{'instance':>8} {'ants':>5} {'mps':>4} {'cap':>5} {'ms':>8} {'steps max':>9} "
+    print(f"{'instance':>8} {'ants':>5} {'k':>3} {'mps':>4} {'cap':>5} {'ms':>8} {'steps max':>9} "
           f"{'mean':>7} {'moves':>7} {'gap in':>7} {'gap out':>8} {'best':>7}")
     for case in args.cases:
         name, ants = case.split(":")
         problem = find_instance(name, args.data_dir)
-        for cap in args.caps:
+        for cap, k, mps in itertools.product(args.caps, args.neighbors, args.moves_per_step):
             c = None if cap == "none" else int(cap)
-            for mps in args.moves_per_step:
-                r = profile(problem, int(ants), mps, c, args.local_search == "or-2opt",
-                            args.seed, args.repeats)
-                rows.append({"instance": name, "ants": int(ants), "moves_per_step": mps,
-                             "cap": c, "local_search": args.local_search, **r})
-                print(f"{name:>8} {ants:>5} {mps:>4} {cap:>5} {r['ms_per_call']:8.2f} "
-                      f"{r['steps_max']:9d} {r['steps_mean']:7.1f} {r['moves_mean']:7.1f} "
-                      f"{r['gap_before_percent']:6.1f}% {r['gap_after_percent']:7.2f}% "
-                      f"{r['best_after_percent']:6.2f}%", flush=True)
+            r = profile(problem, int(ants), mps, c, args.local_search == "or-2opt",
+                        args.seed, args.repeats, k or None)
+            rows.append({"instance": name, "ants": int(ants), "moves_per_step": mps,
+                         "cap": c, "neighbors": k or None, "local_search": args.local_search,
+                         **r})
+            print(f"{name:>8} {ants:>5} {k or 'all':>3} {mps:>4} {cap:>5} "
+                  f"{r['ms_per_call']:8.2f} "
+                  f"{r['steps_max']:9d} {r['steps_mean']:7.1f} {r['moves_mean']:7.1f} "
+                  f"{r['gap_before_percent']:6.1f}% {r['gap_after_percent']:7.2f}% "
+                  f"{r['best_after_percent']:6.2f}%", flush=True)
     write_results(args.out, rows)
     print(f"wrote {args.out}")
 

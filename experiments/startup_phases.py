@@ -1,8 +1,10 @@
 """Where a fresh process's first TSP chunk spends its time, cold and with warm caches.
 
 ``--what phases`` takes the chunk apart by hand: jit (trace, lower, compile) against the chunk
-exported with ``jax.export`` (deserialize, lower, compile); the measurement behind
-``eaco_jax/driver/program_cache.py``. ``--what driver`` (default) times what a user sees:
+exported with ``jax.export`` (deserialize, lower, compile), the measurement behind
+``eaco_jax/driver/program_cache.py``, and against the compiled executable itself serialised
+(``jax.experimental.serialize_executable``: read, deserialise and load; no lowering, no
+lookup in JAX's cache). ``--what driver`` (default) times what a user sees:
 ``minimize`` in fresh processes with JAX's persistent cache on, the program cache off and on
 (wall seconds from the call to the first chunk's result, the part of them spent before the
 first chunk ran, and the compile seconds ``minimize`` reports).
@@ -48,6 +50,22 @@ if mode == "jit":
     tr = fn.trace(*args); t2 = time.perf_counter(); T["trace"] = t2 - t1
     lo = tr.lower(); t3 = time.perf_counter(); T["lower"] = t3 - t2
     c = lo.compile(); t4 = time.perf_counter(); T["compile"] = t4 - t3
+    run = lambda: c(*args)
+elif mode == "executable":
+    import os
+    from jax.experimental import serialize_executable as se
+    if not os.path.exists(blob_path):
+        c = fn.lower(*args).compile()
+        payload, i_t, o_t = se.serialize(c)
+        open(blob_path, "wb").write(payload)
+        pickle.dump((i_t, o_t), open(blob_path + ".tree", "wb"))
+        T["compile_and_serialize"] = time.perf_counter() - t1
+    t2 = time.perf_counter()
+    payload = open(blob_path, "rb").read()
+    i_t, o_t = pickle.load(open(blob_path + ".tree", "rb"))
+    t3 = time.perf_counter(); T["deserialize"] = t3 - t2
+    c = se.deserialize_and_load(payload, i_t, o_t)
+    t4 = time.perf_counter(); T["lower_compile"] = t4 - t3
     run = lambda: c(*args)
 else:
     import os
@@ -130,7 +148,7 @@ def main() -> None:
     from tsp_bench_common import write_results
 
     rows = []
-    modes = (("jit", "export") if args.what == "phases"
+    modes = (("jit", "export", "executable") if args.what == "phases"
              else ("program_cache_off", "program_cache_on"))
     for mode in modes:
         with tempfile.TemporaryDirectory() as tmp:  # each mode starts from empty caches

@@ -107,7 +107,8 @@ def run_in_fresh_process(args: argparse.Namespace, name: str, seed: int) -> dict
     fresh process, as a user's ``eaco tsp`` is, with JAX's caches as warm as they are."""
     opts = {"--ants": args.ants, "--local-search": args.local_search,
             "--ls-best-k": args.ls_best_k, "--ls-moves-per-step": args.ls_moves_per_step,
-            "--max-ls-moves": args.max_ls_moves, "--preset": args.preset,
+            "--max-ls-moves": args.max_ls_moves, "--ls-neighbors": args.ls_neighbors,
+            "--preset": args.preset,
             "--crossover": args.crossover, "--mutation": args.mutation,
             "--params": args.params, "--chunk": args.chunk, "--seconds": args.seconds,
             "--cache-dir": args.cache_dir}
@@ -193,6 +194,8 @@ def main() -> None:
     ap.add_argument("--ls-moves-per-step", type=int,
                     help="2opt / or-2opt: most moves one batched step applies per tour "
                          "(default: GraphEACO's)")
+    ap.add_argument("--ls-neighbors", type=int,
+                    help="candidates per city the local search scans (default: all 20)")
     ap.add_argument("--max-ls-moves", type=int,
                     help="cap on improving moves per tour and iteration (default: none)")
     ap.add_argument("--preset", default="default", help="GraphEACO preset (default/mmas/paper)")
@@ -226,7 +229,8 @@ def main() -> None:
 
     strategy = GraphEACO(num_ants=args.ants, local_search=args.local_search,
                          ls_best_k=args.ls_best_k, crossover=args.crossover,
-                         max_ls_moves=args.max_ls_moves, mutation=args.mutation,
+                         max_ls_moves=args.max_ls_moves, ls_neighbors=args.ls_neighbors,
+                         mutation=args.mutation,
                          preset=args.preset,
                          **({} if args.ls_moves_per_step is None
                             else {"ls_moves_per_step": args.ls_moves_per_step}))
@@ -235,6 +239,7 @@ def main() -> None:
         f" best{args.ls_best_k}" if args.ls_best_k else "") + (
         f" mps{args.ls_moves_per_step}" if args.ls_moves_per_step else "") + (
         f" cap{args.max_ls_moves}" if args.max_ls_moves else "") + (
+        f" k{args.ls_neighbors}" if args.ls_neighbors else "") + (
         f" {args.preset}" if args.preset != "default" else "") + (
         f" cx {args.crossover}" if args.crossover != "auto" else "") + (
         f" mut {args.mutation}" if args.mutation != "auto" else "") + (

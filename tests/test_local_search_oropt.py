@@ -237,3 +237,21 @@ def test_colony_passes_moves_per_step_to_the_search():
     assert not np.array_equal(*got.values())
     with pytest.raises(ValueError, match="ls_moves_per_step must be >= 1"):
         GraphEACO(ls_moves_per_step=0)
+
+
+def test_colony_scans_the_first_ls_neighbors_candidates():
+    """GraphEACO.ls_neighbors=K searches on the first K candidates of each list: the tours of
+    two_opt with those lists, not those of the whole lists."""
+    from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    p = load_tsplib("kroA100")
+    tours = jnp.asarray(_tours(100, 6, 12))
+    got = np.asarray(GraphEACO(num_ants=6, local_search="or-2opt", ls_neighbors=4)
+                     ._local_search(tours, p))
+    want = two_opt(tours, p.dist, p.neighbors[:, :4], or_opt=True,
+                   moves_per_step=GraphEACO().ls_moves_per_step)
+    np.testing.assert_array_equal(got, np.asarray(want))
+    full = np.asarray(GraphEACO(num_ants=6, local_search="or-2opt")._local_search(tours, p))
+    assert not np.array_equal(got, full)
+    with pytest.raises(ValueError, match="ls_neighbors must be >= 1"):
+        GraphEACO(ls_neighbors=0)

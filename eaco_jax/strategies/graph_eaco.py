@@ -207,6 +207,9 @@ class GraphEACO(Strategy):
     #: experiments/local_search_steps.py and tsp_time_to_quality.py (H100, 10 seeds): pr1002
     #: at 7.5 s 0.063% against 0.117% with 32 and 0.143% with 128; pcb442 at 3 s equal
     ls_moves_per_step: int = 64
+    #: candidates per city that the local search scans: the first ls_neighbors of the
+    #: problem's nearest-neighbour lists (None: all of them)
+    ls_neighbors: int | None = None
     #: build tours on the problem's nearest-neighbour candidate lists (see construction.py)
     candidate_lists: bool = True
     #: how the tours are built ("auto", "lazy", "dense", "backup", "compact", "kernel"; see
@@ -231,6 +234,8 @@ class GraphEACO(Strategy):
             raise ConfigError(f"num_ants must be >= 1, got {self.num_ants}")
         if self.ls_best_k is not None and self.ls_best_k < 1:
             raise ConfigError(f"ls_best_k must be >= 1 or None, got {self.ls_best_k}")
+        if self.ls_neighbors is not None and self.ls_neighbors < 1:
+            raise ConfigError(f"ls_neighbors must be >= 1 or None, got {self.ls_neighbors}")
         if self.ls_moves_per_step < 1:
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         for name, value, allowed in (
@@ -442,6 +447,8 @@ class GraphEACO(Strategy):
 
         dist = jnp.asarray(problem.dist, jnp.float32)
         neighbors = problem.neighbors
+        if self.ls_neighbors is not None and neighbors is not None:
+            neighbors = neighbors[:, : self.ls_neighbors]
         if self.local_search in ("2opt", "or-2opt"):
             def improve(t):
                 return local_search.two_opt(t, dist, neighbors, self.max_ls_moves,
