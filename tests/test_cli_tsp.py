@@ -111,6 +111,15 @@ def test_colony_defaults_by_backend(tmp_path):
         assert (gpu.ants, gpu.local_search, gpu.ls_best_k, gpu.preset) == (
             ants, "or-2opt", None, preset)
     assert tsp.colony_defaults(7, "gpu").local_search == "2opt"
+    # a short budget on 700-1,499 cities: 256 ants scanning 8 candidates; else the above
+    for n, seconds, want in ((1002, 3.7, (256, 8)), (783, 5.0, (256, 8)), (1002, 5.5, (384, None)),
+                             (1002, None, (384, None)), (442, 3.0, (1024, None)),
+                             (2392, 3.0, (96, None))):
+        gpu = tsp.colony_defaults(n, "gpu", seconds)
+        assert (gpu.ants, gpu.ls_neighbors) == want, (n, seconds)
+    assert tsp.colony_defaults(1002, "cpu", 3.0).ls_neighbors is None
+    st = tsp.build(tsp.TspSettings("burma14", ls_neighbors=5, iterations=2)).strategy
+    assert st.ls_neighbors == 5
     built = tsp.build(tsp.TspSettings("burma14", iterations=2))
     st = built.strategy
     assert (st.num_ants, st.local_search, st.ls_best_k, st.preset) == (
@@ -124,8 +133,8 @@ def test_colony_defaults_by_backend(tmp_path):
     res = CliRunner().invoke(app, ["tsp", "burma14", "--iterations", "2", "--json"])
     assert res.exit_code == 0, res.output
     record = json.loads(res.stdout.strip().splitlines()[-1])
-    assert (record["ants"], record["local_search"], record["ls_best_k"], record["preset"]) == (
-        50, "2opt+oropt", 25, "mmas")
+    assert (record["ants"], record["local_search"], record["ls_best_k"], record["preset"],
+            record["ls_neighbors"]) == (50, "2opt+oropt", 25, "mmas", None)
 
 
 def test_checkpoint_stores_the_resolved_colony(tmp_path):

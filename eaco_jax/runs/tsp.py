@@ -33,8 +33,8 @@ class TspSettings:
     instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
                             positional=True, metavar="FILE_OR_NAME")
     ants: int | None = setting(None, "colony size (default: 50 on a CPU; on a GPU 1024 below "
-                               "700 cities, 384 below 1500, else 96: the best measured for "
-                               "a time budget)")
+                               "700 cities, 384 below 1500 (256 with --max-seconds 5 or "
+                               "less), else 96: the best measured for a time budget)")
     iterations: int = setting(300, "iterations")
     seed: int = setting(0, "random seed")
     local_search: str = setting("auto", "local search (2opt: best-improvement batches on the "
@@ -46,6 +46,9 @@ class TspSettings:
     ls_best_k: int | None = setting(None, "local search on the k shortest tours of each "
                                     "iteration only (default: the 25 best on a CPU, every "
                                     "tour on a GPU)")
+    ls_neighbors: int | None = setting(None, "candidates per city the local search scans "
+                                       "(default: all 20; on a GPU 8 for 700-1499 cities "
+                                       "with --max-seconds 5 or less)")
     crossover: str = setting("auto", "tour crossover ('auto': erx with local search, except "
                              "in the mmas preset; else none)",
                              choices=("auto", "erx", "pmx", "none"))
@@ -62,7 +65,8 @@ class TspSettings:
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
-        check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k")
+        check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
+                       "ls_neighbors")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,11 +78,18 @@ class ColonyDefaults:
     local_search: str
     ls_best_k: int | None  # None: every ant
     preset: str
+    ls_neighbors: int | None = None  # None: the whole candidate lists
 
 
-def colony_defaults(n: int, backend: str) -> ColonyDefaults:
-    """The colony that ``--ants`` / ``--local-search`` / ``--ls-best-k`` / ``--preset`` left
-    out (``auto``) resolve to for ``n`` cities.
+#: on a GPU, a budget of at most this many seconds (after compilation) on 700-1,499 cities
+#: gets the short-budget colony (256 ants, local search on the 8 nearest candidates)
+SHORT_BUDGET_SECONDS = 5.0
+
+
+def colony_defaults(n: int, backend: str, seconds: float | None = None) -> ColonyDefaults:
+    """The colony that ``--ants`` / ``--local-search`` / ``--ls-best-k`` / ``--preset`` /
+    ``--ls-neighbors`` left out (``auto``) resolve to for ``n`` cities and a time budget of
+    ``seconds`` (None: no time budget).
 
     On a CPU: 50 ants, ACOTSP's don't-look-bit 2-opt + Or-opt (native code, see
     ``eaco_jax/ops/local_search_native.py``) on the 25 shortest tours, MMAS as ACOTSP runs it
@@ -98,9 +109,15 @@ def colony_defaults(n: int, backend: str) -> ColonyDefaults:
     30 s 0.228% against 0.445%; ``..._mmas.json``); below, "default" (pcb442 at 3 s: 0.081%,
     "mmas" 0.133%, "mmas" with ERX / inversion 0.086%). The 700 and 1,500 boundaries lie
     between measured sizes, not at measured crossings.
+    A short budget (at most :data:`SHORT_BUDGET_SECONDS`) on 700-1,499 cities: 256 ants whose
+    search scans the 8 nearest candidates (pr1002, 10 seeds, ``..._k8*.json``): 0.108% at
+    3.7 s against 0.501% for 384 ants on all 20; 384 ants on all 20 ahead from 6 s (0.076%
+    against 0.100%); the two curves cross between 5 and 6 s.
     """
     if backend == "cpu":
         return ColonyDefaults(50, "2opt+oropt", 25, "mmas")
+    if 700 <= n < 1500 and seconds is not None and seconds <= SHORT_BUDGET_SECONDS:
+        return ColonyDefaults(256, "or-2opt", None, "mmas", ls_neighbors=8)
     ants = 1024 if n < 700 else 384 if n < 1500 else 96
     return ColonyDefaults(ants, "or-2opt" if n >= 8 else "2opt", None,  # Or-opt: 8+ cities
                           "default" if n < 700 else "mmas")
@@ -113,13 +130,15 @@ def build(s: TspSettings) -> Built:
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     problem = load_tsplib(s.instance)
-    auto = colony_defaults(int(problem.n), jax.default_backend())
+    auto = colony_defaults(int(problem.n), jax.default_backend(), s.max_seconds)
     ants = auto.ants if s.ants is None else int(s.ants)
+    ls_neighbors = auto.ls_neighbors if s.ls_neighbors is None else int(s.ls_neighbors)
     local_search = auto.local_search if s.local_search == "auto" else s.local_search
     ls_best_k = auto.ls_best_k if s.ls_best_k is None else int(s.ls_best_k)
     preset = auto.preset if s.preset == "auto" else s.preset
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
-                         crossover=s.crossover, mutation=s.mutation, preset=preset)
+                         ls_neighbors=ls_neighbors, crossover=s.crossover,
+                         mutation=s.mutation, preset=preset)
     overrides = parse_overrides(s.params)
     params = params_with(strategy.default_params(problem), overrides, "--params: ")
     strategy.check_params(params, "--params: ")
@@ -135,7 +154,8 @@ def with_resolved_settings(checkpointing: Any, built: Built) -> Any:
         return checkpointing
     st = built.strategy
     settings = {**info["settings"], "ants": int(st.num_ants), "local_search": st.local_search,
-                "ls_best_k": st.ls_best_k, "preset": st.preset}
+                "ls_best_k": st.ls_best_k, "ls_neighbors": st.ls_neighbors,
+                "preset": st.preset}
     return dataclasses.replace(checkpointing, run_info={**info, "settings": settings})
 
 
@@ -169,6 +189,7 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
         "seed": int(s.seed),
         "local_search": built.strategy.local_search,
         "ls_best_k": built.strategy.ls_best_k,
+        "ls_neighbors": built.strategy.ls_neighbors,
         "preset": built.strategy.preset,
         "best_length": length,
         "optimum": problem.optimum,
