@@ -106,14 +106,15 @@ def test_colony_defaults_by_backend(tmp_path):
     cpu = tsp.colony_defaults(442, "cpu")
     assert (cpu.ants, cpu.local_search, cpu.ls_best_k, cpu.preset) == (
         50, "2opt+oropt", 25, "mmas")
-    for n, ants, preset in ((442, 1024, "default"), (1002, 384, "mmas"), (2392, 96, "mmas")):
+    for n, ants, preset, k in ((442, 768, "default", 16), (1002, 384, "mmas", None),
+                               (2392, 96, "mmas", None)):
         gpu = tsp.colony_defaults(n, "gpu")
-        assert (gpu.ants, gpu.local_search, gpu.ls_best_k, gpu.preset) == (
-            ants, "or-2opt", None, preset)
+        assert (gpu.ants, gpu.local_search, gpu.ls_best_k, gpu.preset, gpu.ls_neighbors) == (
+            ants, "or-2opt", None, preset, k)
     assert tsp.colony_defaults(7, "gpu").local_search == "2opt"
     # a short budget on 700-1,499 cities: 256 ants scanning 8 candidates; else the above
     for n, seconds, want in ((1002, 3.7, (256, 8)), (783, 5.0, (256, 8)), (1002, 5.5, (384, None)),
-                             (1002, None, (384, None)), (442, 3.0, (1024, None)),
+                             (1002, None, (384, None)), (442, 3.0, (768, 16)),
                              (2392, 3.0, (96, None))):
         gpu = tsp.colony_defaults(n, "gpu", seconds)
         assert (gpu.ants, gpu.ls_neighbors) == want, (n, seconds)

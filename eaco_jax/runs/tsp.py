@@ -32,7 +32,7 @@ PARAMS_HELP = ("hyper-parameters and mechanism switches as KEY=VALUE,... (e.g. "
 class TspSettings:
     instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
                             positional=True, metavar="FILE_OR_NAME")
-    ants: int | None = setting(None, "colony size (default: 50 on a CPU; on a GPU 1024 below "
+    ants: int | None = setting(None, "colony size (default: 50 on a CPU; on a GPU 768 below "
                                "700 cities, 384 below 1500 (256 with --max-seconds 5 or "
                                "less), else 96: the best measured for a time budget)")
     iterations: int = setting(300, "iterations")
@@ -47,8 +47,8 @@ class TspSettings:
                                     "iteration only (default: the 25 best on a CPU, every "
                                     "tour on a GPU)")
     ls_neighbors: int | None = setting(None, "candidates per city the local search scans "
-                                       "(default: all 20; on a GPU 8 for 700-1499 cities "
-                                       "with --max-seconds 5 or less)")
+                                       "(default: all 20; on a GPU 16 below 700 cities, "
+                                       "8 for 700-1499 cities with --max-seconds 5 or less)")
     crossover: str = setting("auto", "tour crossover ('auto': erx with local search, except "
                              "in the mmas preset; else none)",
                              choices=("auto", "erx", "pmx", "none"))
@@ -97,10 +97,11 @@ def colony_defaults(n: int, backend: str, seconds: float | None = None) -> Colon
     trails): the best of 20 settings on pcb442 at 10 s on one core, 3 seeds each
     (``experiments/results/tsp_ls_choice_pcb442_cpu_native.json``), confirmed on 10 seeds
     beside ACOTSP (``tsp_time_to_quality_cpu_{pcb442,a280}_native.json``).
-    On a GPU: or-2opt, with 1,024 ants below 700 cities, 384 below 1,500 and 96 from there:
-    the best colony sizes measured on one H100 in a time budget
+    On a GPU: or-2opt, with 768 ants below 700 cities (searching 16 candidates, below), 384
+    below 1,500 and 96 from there: the best colony sizes measured on one H100 in a time budget
     (``experiments/results/gpu/tsp_time_to_quality_h100_*_or2opt*.json`` and
-    ``tsp_ttq_screen_h100_*``): pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants (10 seeds);
+    ``tsp_ttq_screen_h100_*``): pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants on all 20
+    candidates (10 seeds);
     pr1002 at 7.5 s, 384 of 256 / 384 / 512 / 1,024 (10 seeds); rat783 at 10 s, 384 of 192 /
     384 / 768 (screen); pr2392 at 20 s, 96 of 96 / 128 / 192 / 384 / 768 (2-seed screen). The
     bigger the tour, the longer each ant's local search, and the fewer ants fill a budget.
@@ -109,6 +110,10 @@ def colony_defaults(n: int, backend: str, seconds: float | None = None) -> Colon
     30 s 0.228% against 0.445%; ``..._mmas.json``); below, "default" (pcb442 at 3 s: 0.081%,
     "mmas" 0.133%, "mmas" with ERX / inversion 0.086%). The 700 and 1,500 boundaries lie
     between measured sizes, not at measured crossings.
+    Below 700 cities since session 13: 768 ants whose search scans the 16 nearest candidates
+    (pcb442 at 3 s, seeds 100-109: 0.028% against 0.081% for 1,024 ants on all 20; 1,024 on
+    16 0.065%, on 12 0.112%, on 10 0.148%, 1,536 on 12 0.133%; ``..._pcb442_*_k*.json``),
+    confirmed from the call on the disjoint seeds 110-119 (0.034%).
     A short budget (at most :data:`SHORT_BUDGET_SECONDS`) on 700-1,499 cities: 256 ants whose
     search scans the 8 nearest candidates (pr1002, 10 seeds, ``..._k8*.json``): 0.108% at
     3.7 s against 0.501% for 384 ants on all 20; 384 ants on all 20 ahead from 6 s (0.076%
@@ -118,9 +123,10 @@ def colony_defaults(n: int, backend: str, seconds: float | None = None) -> Colon
         return ColonyDefaults(50, "2opt+oropt", 25, "mmas")
     if 700 <= n < 1500 and seconds is not None and seconds <= SHORT_BUDGET_SECONDS:
         return ColonyDefaults(256, "or-2opt", None, "mmas", ls_neighbors=8)
-    ants = 1024 if n < 700 else 384 if n < 1500 else 96
+    ants = 768 if n < 700 else 384 if n < 1500 else 96
     return ColonyDefaults(ants, "or-2opt" if n >= 8 else "2opt", None,  # Or-opt: 8+ cities
-                          "default" if n < 700 else "mmas")
+                          "default" if n < 700 else "mmas",
+                          ls_neighbors=16 if n < 700 else None)
 
 
 def build(s: TspSettings) -> Built:
