@@ -229,11 +229,10 @@ def main() -> None:
 
     strategy = GraphEACO(num_ants=args.ants, local_search=args.local_search,
                          ls_best_k=args.ls_best_k, crossover=args.crossover,
+                         mutation=args.mutation, preset=args.preset,
                          max_ls_moves=args.max_ls_moves, ls_neighbors=args.ls_neighbors,
-                         mutation=args.mutation,
-                         preset=args.preset,
-                         **({} if args.ls_moves_per_step is None
-                            else {"ls_moves_per_step": args.ls_moves_per_step}))
+                         ls_moves_per_step=args.ls_moves_per_step
+                         or GraphEACO.ls_moves_per_step)
     overrides = parse_overrides(args.params)
     label = f"eaco {args.ants} ants {args.local_search}" + (
         f" best{args.ls_best_k}" if args.ls_best_k else "") + (
