@@ -151,6 +151,29 @@ def test_bad_input_is_a_one_line_error(tmp_path):
     assert "'vector'" in one_line_error(["gait-eval", str(bad)])
 
 
+def test_horizon_past_the_step_clock_is_refused_before_any_simulation(tmp_path):
+    """--horizon 1e9 (5e10 control steps) aborted XLA after an int32 truncation warning."""
+    from eaco_jax.errors import ProblemError
+    from eaco_jax.problems.gait import MAX_CONTROL_STEPS, make_gait_problem
+
+    dt = load_robot("nao").control_dt
+    most = int(MAX_CONTROL_STEPS * dt)
+    want = f"use a horizon of at most {most} s"
+    gait = tmp_path / "g.json"
+    gait.write_text(json.dumps({"robot": "nao", "vector": [0.0] * 14}))
+    assert want in one_line_error(["gait", "--backend", "native", "--horizon", "1e9"])
+    assert want in one_line_error(["gait-eval", str(gait), "--backend", "native",
+                                   "--horizon", "1e9"])
+    gait.write_text(json.dumps({"robot": "nao", "vector": [0.0] * 14, "horizon": 1e9}))
+    assert want in one_line_error(["gait-eval", str(gait), "--backend", "native"])
+    with pytest.raises(ProblemError, match=want):
+        make_gait_problem("nao", backend="native", horizon=(MAX_CONTROL_STEPS + 1) * dt)
+    problem = make_gait_problem("nao", backend="native", horizon=MAX_CONTROL_STEPS * dt)
+    assert problem.n_steps == MAX_CONTROL_STEPS  # the largest allowed horizon is accepted
+    with pytest.raises(ProblemError, match=want):
+        problem.simulate(np.zeros(14), horizon=1e9)
+
+
 @pytest.mark.slow
 def test_gait_mjx_round_trip(tmp_path):
     """The MJX backend end to end; its stored parameters re-simulate to the same fitness."""

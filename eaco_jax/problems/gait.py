@@ -226,6 +226,8 @@ class GaitProblem:
         p = np.asarray(params, np.float32).reshape(-1)
         if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
             raise ProblemError(f"simulate needs {self.dim} finite parameters, got {p.shape}")
+        if horizon is not None:
+            check_horizon(float(horizon), self.spec)
         prob = self if backend is None and horizon is None else self.replace(
             backend=_resolve_backend(backend or self.backend),
             horizon=float(horizon if horizon is not None else self.horizon))
@@ -318,6 +320,25 @@ def _resolve_backend(backend: str) -> str:
     return backend
 
 
+#: most control steps a horizon may hold: the walk engine's clock is ``arange(n, float32) * dt``
+#: (exact step indices up to 2**24; past 2**31 the int32 step counter overflows and XLA aborts)
+MAX_CONTROL_STEPS = 2**24
+
+
+def check_horizon(horizon: float, spec: RobotSpec) -> None:
+    """Refuse a horizon shorter than one control step or longer than the step clock counts
+    exactly (one :class:`ProblemError` line naming the allowed range), before any simulation."""
+    if horizon < spec.control_dt:
+        raise ProblemError(f"horizon must be at least one control step ({spec.control_dt} s)")
+    steps = horizon / spec.control_dt
+    if steps > MAX_CONTROL_STEPS:
+        most = math.floor(MAX_CONTROL_STEPS * spec.control_dt)
+        raise ProblemError(
+            f"horizon {horizon:g} s is {steps:.3g} control steps of {spec.control_dt} s, more "
+            f"than the {MAX_CONTROL_STEPS} the step clock counts exactly; use a horizon of at "
+            f"most {most} s")
+
+
 def make_gait_problem(
     robot: str | RobotSpec = "nao",
     backend: str = "auto",
@@ -349,8 +370,7 @@ def make_gait_problem(
                      ("slope_deg", slope_deg), ("penalty_weight", penalty_weight)):
         if not isinstance(v, int | float) or not math.isfinite(v):
             raise ProblemError(f"{label} must be a finite number, got {v!r}")
-    if horizon < spec.control_dt:
-        raise ProblemError(f"horizon must be at least one control step ({spec.control_dt} s)")
+    check_horizon(horizon, spec)
     if abs(slope_deg) >= 45.0:
         raise ProblemError(f"slope_deg must be within (-45, 45) degrees, got {slope_deg}")
     if accuracy not in ("fast", "accurate"):
