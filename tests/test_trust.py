@@ -123,6 +123,23 @@ def test_feasibility_is_rechecked_in_float64():
     assert warned == (claimed and not truth["feasible"])
 
 
+def test_recheck_refutes_a_point_feasible_only_in_float32():
+    """g(x) = x0 - 0.1 at x0 = float32(0.1): 0 in float32, +1.5e-9 in float64 (tolerance 0)."""
+    p = ConstrainedProblem(lambda x: x[0] + x[1] ** 2, lambda x: jnp.stack([x[0] - 0.1]),
+                           lower=[0.1, -1.0], upper=[1.0, 1.0], name="edge")
+    x = np.float32([0.1, 0.0])
+    assert float(p.evaluate(jnp.asarray(x)[None]).violation[0]) == 0.0  # float32 says feasible
+    check = p.host_check(x)
+    assert not check["feasible"] and check["cost"] == np.inf
+    assert check["violation"] == float(np.float32(0.1)) - 0.1 > 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r32 = ea.minimize(p, seed=0, max_evaluations=2000, precision="float32")
+    assert float(r32.state.best_violation) == 0.0 and np.asarray(r32.x)[0] == np.float32(0.1)
+    assert not r32.feasible and float(r32.violation) > 0
+    assert any("re-checked in float64" in str(w.message) for w in caught)
+
+
 def test_float64_problem_keeps_float64_outside_the_scope():
     with ea.problems.float64():
         p = ea.problems.cec2006("g06")
