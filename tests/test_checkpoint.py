@@ -65,11 +65,18 @@ def test_resume_from_every_step_is_bit_identical(tmp_path, seed):
         for later in _steps(part):
             if later > step:
                 shutil.rmtree(part / str(later))
-        resumed = _run(part, seed=seed, checkpoint_every=10)
+        seen = []  # iterations done after each chunk this process computed
+        resumed = _run(part, seed=seed, checkpoint_every=10,
+                       callback=lambda state, info, seen=seen: seen.append(info.iterations))
         _same(unbroken, resumed)
         assert _steps(part)[-1] == 30
-    # a finished run in the folder is returned as it is
-    _same(unbroken, _run(full, seed=seed, checkpoint_every=10))
+        # only the chunks after `step` ran: a run recomputed from the seed matches too
+        assert seen == list(range(step + 5, 31, 5))
+    # a finished run in the folder is returned as it is, computing nothing
+    seen = []
+    _same(unbroken, _run(full, seed=seed, checkpoint_every=10,
+                         callback=lambda state, info: seen.append(info.iterations)))
+    assert seen == []
 
 
 def test_prng_key_and_counters_survive(tmp_path):
