@@ -37,22 +37,19 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
+import common as st
 import jax
 import jax.numpy as jnp
 import numpy as np
+from common import divisor_chunk, run_cell
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import evidence_stats as st  # noqa: E402
-from evidence_runner import divisor_chunk, run_cell  # noqa: E402
-
-import eaco_jax as ea  # noqa: E402
-from eaco_jax.strategies.continuous_eaco import ContinuousEACO  # noqa: E402
-from eaco_jax.strategies.graph_eaco import GraphEACO  # noqa: E402
+import eaco_jax as ea
+from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+from eaco_jax.strategies.graph_eaco import GraphEACO
 
 RESULTS = Path(__file__).resolve().parent / "results"
 TOLERANCE = 1e-4  # CEC2006 success: f - f* <= 1e-4

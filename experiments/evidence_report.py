@@ -170,7 +170,7 @@ def cec() -> None:
 def paper() -> None:
     if any((RESULTS / f"paper/{n}.json").exists()
            for n in ("table1_tsp", "table2", "table3", "fig1", "fig4", "fig9")):
-        print("\n## The paper's tables (`experiments/paper/paper.py`)")
+        print("\n## The paper's tables (`experiments/paper.py`)")
     t1 = load("paper/table1_tsp.json")
     if t1:
         run_note("paper/table1_tsp.json", ("instance", "tours", "ants", "seeds"))

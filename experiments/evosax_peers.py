@@ -22,16 +22,13 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import sys
 import time
 from pathlib import Path
 
+import common as st
 import jax
 import jax.numpy as jnp
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import evidence_stats as st  # noqa: E402
 
 import eaco_jax as ea  # noqa: E402
 

@@ -52,8 +52,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+from common import timed
 from eaco_jax.robots import load_robot
-from timing import timed
 
 import eaco_jax as ea
 from eaco_jax.gait.rollout_mjx import mjx_model

@@ -15,12 +15,10 @@ table and JSON. The sequential version lives only here, as the reference being r
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from tsp_bench_common import find_instance, write_results  # noqa: E402
+from common import find_instance, write_results
 
 RESULTS = Path(__file__).resolve().parent / "results" / "local_search_acceptance_speed.json"
 

@@ -11,13 +11,10 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from tsp_bench_common import find_instance, write_results  # noqa: E402
+from common import find_instance, write_results
 
 RESULTS = Path(__file__).resolve().parent / "results" / "local_search_native_speed.json"
 

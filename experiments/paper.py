@@ -1,7 +1,7 @@
 """The paper's Tables 1-3 and Figs. 1 and 9 regenerated with the library's baselines.
 
-    python experiments/paper/paper.py all           # everything (tens of minutes, 2 cores)
-    python experiments/paper/paper.py table2 --quick
+    python experiments/paper.py all           # everything (tens of minutes, 2 cores)
+    python experiments/paper.py table2 --quick
 
 Every cell: 25 seeds vmapped in one compiled call (parameters unbatched), CIs (bootstrap 95 %),
 JSON + CSV + PNG under ``experiments/results/paper/``. Our reading of each item:
@@ -34,23 +34,19 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
+import common as st
 import jax
 import jax.numpy as jnp
 import numpy as np
+from common import divisor_chunk, run_cell
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-import evidence_stats as st  # noqa: E402
-from evidence_runner import divisor_chunk, run_cell  # noqa: E402
-
-import eaco_jax as ea  # noqa: E402
-from eaco_jax import plots  # noqa: E402
-from eaco_jax.strategies import (  # noqa: E402
+import eaco_jax as ea
+from eaco_jax import plots
+from eaco_jax.strategies import (
     PSO,
     AntColonySystem,
     AntSystem,
@@ -65,7 +61,8 @@ from eaco_jax.strategies import (  # noqa: E402
     TourTabu,
 )
 
-OUT = HERE.parent / "results" / "paper"
+HERE = Path(__file__).resolve().parent
+OUT = HERE / "results" / "paper"
 G_NAMES = {"G1": "g01", "G2": "g10", "G3": "g09", "G4": "g13"}
 PAPER_TABLE1 = {"EACO": (0.00048, 117, 0.0793), "ACO": (0.00059, 175, 0.1033),
                 "PSO": (0.00089, 327, 0.2489), "GA": (0.00067, 912, 0.6110),

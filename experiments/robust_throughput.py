@@ -36,8 +36,8 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from common import timed
 from mujoco import rollout as mj_rollout
-from timing import timed
 
 from eaco_jax.gait.rollout_mjx import mjx_model
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps

@@ -23,8 +23,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 CHILD = r'''
 import json, pickle, sys, time
 t00 = time.perf_counter()
@@ -145,7 +143,7 @@ def main() -> None:
     ap.add_argument("--what", choices=["driver", "phases"], default="driver")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args()
-    from tsp_bench_common import write_results
+    from common import write_results
 
     rows = []
     modes = (("jit", "export", "executable") if args.what == "phases"

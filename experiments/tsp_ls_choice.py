@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from tsp_bench_common import (  # noqa: E402
+from common import (
     best_at,
     enable_compile_cache,
     find_instance,

@@ -34,8 +34,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from tsp_bench_common import device_info, enable_compile_cache, find_instance  # noqa: E402
+from common import device_info, enable_compile_cache, find_instance
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_scale.json"
 PEAK_GBS = {"H100 80GB HBM3": 3350.0, "H100 SXM": 3350.0, "H100 PCIe": 2000.0,

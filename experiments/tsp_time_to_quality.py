@@ -2,7 +2,7 @@
 
 Per instance and seed, one ``eaco_jax.minimize`` run of ``GraphEACO`` (``--ants``,
 ``--local-search``, ``--ls-best-k``) for ``--seconds`` of search after compilation (the
-driver's ``max_seconds``; see ``tsp_bench_common.run_timed``). The best length after every
+driver's ``max_seconds``; see ``common.run_timed``). The best length after every
 chunk gives a curve; the table shows the mean gap over seeds at ``--checkpoints`` seconds,
 after compilation and from the call (compile included). With ``--acotsp PATH`` (a binary
 built outside this repository) ACOTSP runs each seed for the same time, MMAS with
@@ -29,13 +29,12 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from evidence_stats import t_ci  # noqa: E402
-from tsp_bench_common import (  # noqa: E402
+from common import (
     best_at,
     enable_compile_cache,
     find_instance,
     run_timed,
+    t_ci,
     write_results,
 )
 
@@ -44,7 +43,7 @@ RESULTS = Path(__file__).resolve().parent / "results" / "tsp_time_to_quality.jso
 
 def acotsp_file(name: str, data_dirs: list[Path] | None) -> Path:
     """The .tsp file ACOTSP reads for an instance."""
-    from tsp_bench_common import data_dirs as dirs
+    from common import data_dirs as dirs
 
     from eaco_jax.problems.tsp import DATA_DIR
 

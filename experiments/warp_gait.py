@@ -52,7 +52,7 @@ from eaco_jax.problems.gait import make_gait_problem
 from eaco_jax.strategies import ContinuousEACO
 
 mjx = quiet_mjx()
-from timing import timed  # noqa: E402 - experiments/ is the script's folder
+from common import timed  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "gpu"
 

@@ -1,4 +1,4 @@
-"""The statistics of experiments/evidence_stats.py on cases with known answers."""
+"""The statistics of experiments/common.py on cases with known answers."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-PATH = Path(__file__).resolve().parent.parent / "experiments" / "evidence_stats.py"
+PATH = Path(__file__).resolve().parent.parent / "experiments" / "common.py"
 
 
 @pytest.fixture(scope="module")
 def st():
-    spec = importlib.util.spec_from_file_location("evidence_stats", PATH)
+    spec = importlib.util.spec_from_file_location("common", PATH)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
