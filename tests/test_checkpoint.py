@@ -436,3 +436,48 @@ def test_driver_holds_only_the_history_since_the_last_save(tmp_path, monkeypatch
     assert res.history["best_cost"].shape[0] == 60
     unbroken = ea.minimize(_problem(), RandomSearch(), seed=1, iterations=60, chunk_size=5)
     _same(unbroken, res)
+
+
+def _segment_names(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.glob("*.npz"))
+
+
+def test_fresh_run_sets_an_earlier_runs_history_aside(tmp_path):
+    """A fresh run (no step in the folder) with another interval over an earlier run's
+    segments: they are moved to old/ (kept), the run and its resume equal an unbroken one."""
+    ck = tmp_path / "ck"
+    _run(ck, iterations=30, checkpoint_every=10)
+    earlier = _segment_names(ck / "history")
+    for step in _steps(ck):
+        shutil.rmtree(ck / str(step))
+    unbroken = _run(tmp_path / "ref", iterations=25, checkpoint_every=5)
+    with pytest.warns(UserWarning, match=r"3 history segment\(s\) .* earlier run"):
+        fresh = _run(ck, iterations=25, checkpoint_every=5)
+    _same(unbroken, fresh)
+    assert _segment_names(ck / "history") == _segment_names(tmp_path / "ref" / "history")
+    (old,) = (ck / "old").iterdir()
+    assert _segment_names(old) == earlier
+    _same(unbroken, _run(ck, iterations=25, checkpoint_every=5))
+
+
+def test_history_read_prefers_the_segments_that_chain(tmp_path):
+    """A folder where an earlier run's segments (0-10, 10-20, 20-30) sit beside this run's
+    (0-5, ..., 20-25): read follows the chain, and a resume sets the others aside."""
+    from eaco_jax.driver.history import HistoryLog
+
+    ck, other = tmp_path / "ck", tmp_path / "other"
+    _run(other, iterations=30, checkpoint_every=10)
+    unbroken = _run(ck, iterations=25, checkpoint_every=5, keep=5)
+    for seg in (other / "history").glob("*.npz"):
+        shutil.copy(seg, ck / "history" / seg.name)
+    shutil.rmtree(ck / "25")
+    log = HistoryLog(ck / "history", 0)
+    logged = log.read(20, read_meta(ck)["history_chain"])
+    for k, v in unbroken.history.items():
+        np.testing.assert_array_equal(logged[k], v[:20], err_msg=k)
+    with pytest.warns(UserWarning, match=r"2 history segment.* \(step 20 does not chain"):
+        resumed = _run(ck, iterations=25, checkpoint_every=5, keep=5)
+    _same(unbroken, resumed)
+    assert _steps(ck) == [5, 10, 15, 20, 25] and not (ck / "corrupt").exists()
+    assert _segment_names(next((ck / "old").iterdir())) == [
+        f"{0:012d}-{10:012d}.npz", f"{10:012d}-{20:012d}.npz"]

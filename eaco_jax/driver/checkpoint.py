@@ -26,7 +26,8 @@ that is never listed as a step. Restore takes the newest step whose files read b
 their digest; a step that does not is moved aside into ``<dir>/corrupt/`` (never deleted) with
 a warning, and the next older one is tried (a corrupt history segment is moved aside with the
 steps that need it). History segments past the restored step (iterations the resumed run
-will compute again) are removed. A lock file (``<dir>/.lock``, ``flock``) keeps a
+will compute again) are removed; segments no step refers to (an earlier run's, left in the
+folder: a fresh run, or a step that does not chain through them) are moved into ``<dir>/old/``. A lock file (``<dir>/.lock``, ``flock``) keeps a
 second process from writing the same folder. Mismatched runs and incompatible versions raise
 :class:`CheckpointError` (one line) before anything in the folder is written or moved.
 """
@@ -454,6 +455,16 @@ class RunCheckpointer:
             f"checkpoint step {step} in {self.directory} is corrupt ({reason}); moved to "
             f"{target} and falling back to the previous step", stacklevel=4)
 
+    def _set_aside_history(self, paths: list[Path], why: str) -> None:
+        """Move an earlier run's history segments out of the log (a fresh run or a resumed
+        one would otherwise find two segments starting at one iteration)."""
+        if not paths:
+            return
+        target = self.log.set_aside(paths, self.directory / "old")
+        warnings.warn(
+            f"{len(paths)} history segment(s) in {self.log.directory} belong to an earlier run "
+            f"({why}); moved to {target}", stacklevel=4)
+
     def _read(self, step: int, template: Any) -> Restored:
         with _quiet_logs():
             return self._read_unquiet(step, template)
@@ -493,6 +504,9 @@ class RunCheckpointer:
         self.open()
         steps = all_steps(self.directory)
         if not steps:
+            self._set_aside_history([p for _s, _e, p in self.log.segments()],
+                                    "no checkpoint refers to them")
+            self.log.truncate(0)
             return None
         check_identity(read_meta(self.directory), self.identity, self.directory)
         for step in steps:
@@ -510,6 +524,10 @@ class RunCheckpointer:
             self._last_done = restored.done
             self._last_time = time.monotonic()
             self._chain = str(restored.meta.get("history_chain", ""))
+            used = {p for _s, _e, p in self.log.chained(restored.done, self._chain)}
+            self._set_aside_history(
+                [p for _s, e, p in self.log.segments() if e <= restored.done and p not in used],
+                f"step {restored.done} does not chain through them")
             self.log.truncate(restored.done)
             if on_segment is not None:  # verified above: a second pass hands it over
                 self.log.read(restored.done, self._chain, visit=on_segment)

@@ -113,38 +113,102 @@ class HistoryLog:
         """The history of iterations ``[0, done)``, checked against ``expected_chain``.
 
         With ``visit``, each segment is passed to it in order and nothing is kept (returns
-        None): a resumed run does not hold the history it restored in memory. Raises
-        :class:`HistoryCorrupt` naming the segment.
+        None): a resumed run does not hold the history it restored in memory. Where two
+        segments start at one iteration (an older run's left in the folder), the ones whose
+        digests chain to ``expected_chain`` are read. Raises :class:`HistoryCorrupt` naming
+        the segment.
         """
-        by_start: dict[int, tuple[int, Path]] = {}
-        for s, e, p in self.segments():
-            if e <= done:
-                by_start[s] = (e, p)
-        parts, pos, digest_chain = [], 0, ""
-        while pos < done:
-            if pos not in by_start:
-                raise HistoryCorrupt(f"history segment starting at iteration {pos} is missing")
-            end, path = by_start[pos]
+        parts, digest_chain = [], ""
+        for start, end, path in self.chained(done, expected_chain):
             arrays, digest = self._load(path)
-            lengths = {v.shape[self.axis] for v in arrays.values()} or {0}
-            if lengths != {end - pos}:
-                raise HistoryCorrupt(f"history segment {path.name} holds {lengths} iterations",
-                                     path)
+            self._check_length(arrays, start, end, path)
             digest_chain = chain(digest_chain, digest)
             if visit is None:
                 parts.append(arrays)
             else:
                 visit(arrays)
-            pos = end
         if digest_chain != expected_chain:
             raise HistoryCorrupt("the history segments do not match the checkpoint's digest chain")
         return merge_history(parts, self.axis) if visit is None else None
+
+    def chained(self, done: int, expected_chain: str) -> list[tuple[int, int, Path]]:
+        """The segments that make up ``[0, done)``, in order: the only ones there are, or,
+        where several start at one iteration, the sequence whose digests chain to
+        ``expected_chain`` (found by digests alone). Raises :class:`HistoryCorrupt`."""
+        by_start: dict[int, list[tuple[int, Path]]] = {}
+        for s, e, p in self.segments():
+            if e <= done:
+                by_start.setdefault(s, []).append((e, p))
+        if all(len(c) == 1 for c in by_start.values()):
+            out, pos = [], 0
+            while pos < done:
+                if pos not in by_start:
+                    raise HistoryCorrupt(
+                        f"history segment starting at iteration {pos} is missing")
+                end, path = by_start[pos][0]
+                out.append((pos, end, path))
+                pos = end
+            return out
+        return self._search(done, expected_chain, by_start)
+
+    def _search(self, done: int, expected_chain: str,
+                by_start: dict[int, list[tuple[int, Path]]]) -> list[tuple[int, int, Path]]:
+        """Depth-first over the candidate segments at each start; each file is read once."""
+        digests: dict[Path, str | None] = {}
+        first_error: list[HistoryCorrupt] = []
+
+        def digest_of(start: int, end: int, path: Path) -> str | None:
+            if path not in digests:
+                try:
+                    arrays, digest = self._load(path)
+                    self._check_length(arrays, start, end, path)
+                    digests[path] = digest
+                except HistoryCorrupt as err:
+                    first_error.append(err)
+                    digests[path] = None
+            return digests[path]
+
+        stack: list[tuple[int, str, list[tuple[int, int, Path]]]] = [(0, "", [])]
+        while stack:
+            pos, digest_chain, path_so_far = stack.pop()
+            if pos == done:
+                if digest_chain == expected_chain:
+                    return path_so_far
+                continue
+            for end, path in by_start.get(pos, []):
+                digest = digest_of(pos, end, path)
+                if digest is not None:
+                    stack.append((end, chain(digest_chain, digest),
+                                  [*path_so_far, (pos, end, path)]))
+        if first_error:
+            raise first_error[0]
+        raise HistoryCorrupt("no sequence of history segments matches the checkpoint's digest "
+                             "chain")
+
+    def _check_length(self, arrays: dict[str, np.ndarray], start: int, end: int,
+                      path: Path) -> None:
+        lengths = {v.shape[self.axis] for v in arrays.values()} or {0}
+        if lengths != {end - start}:
+            raise HistoryCorrupt(f"history segment {path.name} holds {lengths} iterations", path)
 
     def move_aside(self, path: Path, where: Path) -> Path:
         """Move a corrupt segment into ``where`` (never deleted)."""
         where.mkdir(parents=True, exist_ok=True)
         target = where / f"history-{path.stem}-{time.strftime('%Y%m%d-%H%M%S')}.npz"
         shutil.move(str(path), str(target))
+        return target
+
+    def set_aside(self, paths: list[Path], where: Path) -> Path:
+        """Move segments no checkpoint refers to (an earlier run's) into a new folder
+        ``where/history-<time>`` with their names (never deleted); returns the folder."""
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        target, n = where / f"history-{stamp}", 1
+        while target.exists():
+            n += 1
+            target = where / f"history-{stamp}-{n}"
+        target.mkdir(parents=True)
+        for path in paths:
+            shutil.move(str(path), str(target / path.name))
         return target
 
     def truncate(self, done: int) -> None:
