@@ -165,3 +165,142 @@ def test_infeasible_rows_do_not_break_the_tables(tmp_path):
     assert summarise(rec)["best"] == 2.0 and summarise(rec)["runs"] == 2
     plot_summary(tmp_path / "s.png", [rec, {**rec, "rows": [{"best_cost": None}]}], "t")
     assert (tmp_path / "s.png").stat().st_size > 1000
+
+
+# --------------------------------------------------------------------------- bounded plans
+def _refused_fast(fn, match, seconds=1.5):
+    """``fn`` raises one ConfigError line matching ``match`` within ``seconds``."""
+    import time
+
+    t0 = time.perf_counter()
+    with pytest.raises(ConfigError, match=match) as err:
+        fn()
+    assert time.perf_counter() - t0 < seconds
+    assert "\n" not in str(err.value)
+    return str(err.value)
+
+
+def _cli(*args):
+    from typer.testing import CliRunner
+
+    from eaco_jax.cli import app
+
+    return CliRunner().invoke(app, ["sweep", *map(str, args)])
+
+
+TSP = {"command": "tsp", "args": {"instance": "burma14", "ants": 4, "iterations": 2,
+                                  "local_search": "none"}, "seeds": 1}
+
+
+def test_list_valued_cell_refused_before_anything_is_built(tmp_path):
+    _refused_fast(lambda: sw.plan({**TSP, "cells": [{"q0": [0.5, 0.6]}]}),
+                  r"sweep cell 0 key 'q0': \[0.5, 0.6\] is a list, not one value; give each "
+                  "value its own cell")
+    _refused_fast(lambda: sw.plan({**SPEC, "grid": {"scale": [[0.5], 0.6]}}),
+                  r"grid entry 'scale' value 0: \[0.5\] is a list, not one value")
+    _refused_fast(lambda: sw.plan({**SPEC, "args": {"iterations": {"a": 1}}}),
+                  r"sweep args key 'iterations': \{'a': 1\} is a mapping, not one value")
+    _refused_fast(lambda: sw.plan({"kind": "test_sweep:TOY", "random": {
+        "n": 2, "space": {"ants": {"choice": [[4, 8]]}}}}), r"choice 0: \[4, 8\] is a list")
+    path = tmp_path / "s.yaml"
+    path.write_text("command: tsp\nargs: {instance: burma14}\ncells: [{q0: [0.5, 0.6]}]\n")
+    out = _cli(path, "--out", tmp_path / "o")
+    assert out.exit_code == 2 and out.output.count("\n") == 1
+    assert out.output.startswith("error: sweep cell 0 key 'q0': [0.5, 0.6] is a list")
+    assert not (tmp_path / "o").exists()
+
+
+def test_cell_count_is_bounded_before_any_product(tmp_path):
+    grid = {f"k{i}": list(range(10)) for i in range(9)}
+    msg = _refused_fast(lambda: sw.plan({**TSP, "grid": grid}), "the sweep has 1,000,000,000 "
+                        "cells")
+    assert "(10 k0 x 10 k1 x" in msg and "max_cells: N in the file, or --max-cells N" in msg
+    _refused_fast(lambda: sw.plan({**TSP, "cells": [{}] * 3, "grid": grid}),
+                  "3,000,000,000 cells \\(3 listed x 10 k0")
+    _refused_fast(lambda: sw.plan({**TSP, "random": {"n": 10**9, "space": {"q0": [0, 1]}}}),
+                  "1,000,000,000 cells \\(random n\\)")
+    # the limit is the file's max_cells, overridden by the caller's (the command's flag)
+    six = {**SPEC, "grid": {"scale": [0.25, 0.5, 1.0], "ants": [4, 8]}}
+    _refused_fast(lambda: sw.plan({**six, "max_cells": 5}), "6 cells .* max_cells=5;")
+    assert len(sw.plan({**six, "max_cells": 6})[1]) == 6
+    _refused_fast(lambda: sw.plan(six, max_cells=5), "max_cells=5;")
+    assert len(sw.plan({**six, "max_cells": 5}, max_cells=6)[1]) == 6
+    _refused_fast(lambda: sw.plan({**six, "max_cells": 0}), "max_cells must be an integer >= 1")
+    import yaml
+
+    path = tmp_path / "six.yaml"
+    path.write_text(yaml.safe_dump(six))
+    out = _cli(path, "--max-cells", 5, "--out", tmp_path / "o")
+    assert out.exit_code == 2 and out.output.startswith("error: the sweep has 6 cells")
+    path.write_text(yaml.safe_dump({**six, "max_cells": 5, "args": {"iterations": 2}}))
+    out = _cli(path, "--max-cells", 6, "--out", tmp_path / "o", "--json")
+    assert out.exit_code == 0, out.output
+    assert json.loads(out.stdout.strip().splitlines()[-1])["cells"] == 6
+
+
+ALIAS_BOMB = "command: tsp\n" + "".join(
+    f"l{i}: &l{i} [{', '.join([f'*l{i - 1}' if i else '0'] * 10)}]\n" for i in range(10)
+) + "cells: [{q0: *l9}]\n"  # 10**10 leaves in 602 bytes
+
+
+def test_yaml_alias_bomb_refused_fast_in_little_memory(tmp_path):
+    import tracemalloc
+
+    path = tmp_path / "bomb.yaml"
+    path.write_text(ALIAS_BOMB)
+    assert len(ALIAS_BOMB) < 1024
+    tracemalloc.start()
+    try:
+        _refused_fast(lambda: sw.load_spec(path), r"bomb.yaml expands to more than 2,000,000 "
+                      "values \\(through its aliases\\)")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 2**20
+    out = _cli(path)
+    assert out.exit_code == 2 and out.output.count("\n") == 1 and "expands to more" in out.output
+    path.write_text("command: tsp\nname: &a [*a]\n")
+    _refused_fast(lambda: sw.load_spec(path), "holds a recursive alias")
+    path.write_text("command: tsp\nname: " + "[" * 5000 + "]" * 5000 + "\n")
+    _refused_fast(lambda: sw.load_spec(path), "nested too deeply", seconds=5)
+    # a sweep file with ordinary aliases still loads
+    path.write_text("kind: test_sweep:TOY\nargs: &a {iterations: 3}\ncells: [{scale: 0.5}]\n"
+                    "grid: {ants: &n [4, 5]}\nname: ok\n")
+    spec = sw.load_spec(path)
+    assert spec.args == {"iterations": 3} and spec.grid == {"ants": (4, 5)}
+
+
+def test_seeds_at_most_what_runs_and_rows_estimated_before_setup():
+    msg = _refused_fast(lambda: sw.plan({**TSP, "seeds": 1048576}),
+                        "seeds: 1,048,576 seeds is more than the 65,536 a sweep runs")
+    assert "about 32 GiB of host memory" in msg
+    _refused_fast(lambda: sw.plan({**TSP, "seeds": list(range(65537))}), "65,537 seeds")
+    # within the seed limit, a group's rows (cells x seeds, one vmapped call) are estimated
+    # with the driver's state estimate and refused before anything is set up
+    many = {**SPEC, "seeds": 65536, "grid": {"scale": [i / 300 for i in range(1, 301)]}}
+    msg = _refused_fast(lambda: sw.plan(many), r"the sweep's largest group needs about .* GiB "
+                        r"\(300 cell\(s\) x 65,536 seeds = 19,660,800 rows of", seconds=10)
+    assert "use fewer seeds" in msg
+
+
+def test_the_spec_is_parsed_once_and_the_typed_spec_flows(tmp_path, monkeypatch):
+    from eaco_jax.sweep import spec as spec_mod
+
+    calls = []
+    real = spec_mod._from_raw
+
+    def counting(raw, max_cells):
+        calls.append(raw)
+        return real(raw, max_cells)
+
+    monkeypatch.setattr(spec_mod, "_from_raw", counting)
+    small = {**SPEC, "grid": {"scale": [0.5, 1.0]}, "seeds": 2}
+    rec = sw.run_sweep(small, tmp_path / "a")
+    assert len(calls) == 1 and rec["runs"] == 4
+    typed = sw.parse_spec(small)
+    assert isinstance(typed, sw.SweepSpec) and typed.seeds == (0, 1) and typed.run_kind is TOY
+    assert typed.grid == {"scale": (0.5, 1.0)} and typed.num_cells == 2
+    calls.clear()
+    again = sw.run_sweep(typed, tmp_path / "a")
+    assert calls == [] and again["cells_run_now"] == 0  # same cells: all finished already
+    assert json.loads((tmp_path / "a" / "spec.json").read_text())["seeds"] == 2

@@ -12,23 +12,6 @@ from typing import Annotated
 import typer
 
 from eaco_jax.cli.common import emit_json, guarded
-from eaco_jax.errors import ConfigError
-
-
-def load_spec(path: Path) -> dict:
-    """Read a sweep YAML file (one-line errors for missing or malformed files)."""
-    import yaml
-
-    if not path.is_file():
-        raise ConfigError(f"sweep file {path} does not exist")
-    try:
-        spec = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as err:
-        first = str(err).splitlines()[0]
-        raise ConfigError(f"sweep file {path} is not valid YAML: {first}") from None
-    if not isinstance(spec, dict):
-        raise ConfigError(f"sweep file {path} must hold a mapping (name, command, args, ...)")
-    return spec
 
 
 def register(app: typer.Typer) -> None:
@@ -43,18 +26,21 @@ def register(app: typer.Typer) -> None:
         workers: Annotated[int | None, typer.Option(help="local Ray CPUs (workers)")] = None,
         json_out: Annotated[bool, typer.Option("--json", help="print one JSON record")] = False,
         quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
+        max_cells: Annotated[int | None, typer.Option(
+            help="most cells the sweep may have (default: the file's max_cells, else "
+                 "100,000)")] = None,
     ) -> None:
         """Run a hyper-parameter sweep; an interrupted sweep resumes where it stopped.
 
         YAML keys: command (tsp|constrained|path|gait) or kind ("module:RUNKIND"), args
         (fixed settings: the command's flags), seeds (int or list), cells (list of settings)
-        and/or grid (lists, crossed), or random (n, seed, space), checkpoint_every. Swept
-        Params fields run as one vmapped call. Format: docs/sweeps.md; example:
-        experiments/sweeps/table3_g01.yaml.
+        and/or grid (lists, crossed), or random (n, seed, space), checkpoint_every,
+        max_cells. Swept Params fields run as one vmapped call. Format: docs/sweeps.md;
+        example: experiments/sweeps/table3_g01.yaml.
         """
-        from eaco_jax.sweep import run_sweep
+        from eaco_jax.sweep import load_spec, run_sweep
 
-        spec = load_spec(spec_file)
+        spec = load_spec(spec_file, max_cells=max_cells)
         folder = out or Path("sweeps") / spec_file.stem
         ray_options = {"address": address, "num_cpus": workers} if executor == "ray" else None
         record = run_sweep(spec, folder, backend=executor, progress=not (quiet or json_out),

@@ -558,13 +558,22 @@ def _memory_limit() -> int:
     return memory_bytes()
 
 
+def memory_limit() -> int:
+    """Bytes the default device may hold (what colony states are measured against)."""
+    return _memory_limit()
+
+
+def state_row_bytes(strategy: Strategy, problem: Any, params: Any) -> int:
+    """Bytes of one row of the colony state (abstract: nothing allocated)."""
+    shapes = jax.eval_shape(lambda k: strategy.init(k, problem, params), jax.random.key(0))
+    return sum(int(np.prod(a.shape)) * a.dtype.itemsize for a in jax.tree.leaves(shapes)
+               if hasattr(a, "dtype") and not jnp.issubdtype(a.dtype, jax.dtypes.prng_key))
+
+
 def check_state_memory(strategy: Strategy, problem: Any, rows: int, params: Any) -> None:
     """Refuse a colony whose state alone would not fit in memory (abstract: nothing allocated)."""
     one = params[0] if isinstance(params, list | tuple) else params
-    shapes = jax.eval_shape(lambda k: strategy.init(k, problem, one), jax.random.key(0))
-    per_row = sum(int(np.prod(a.shape)) * a.dtype.itemsize for a in jax.tree.leaves(shapes)
-                  if hasattr(a, "dtype") and not jnp.issubdtype(a.dtype, jax.dtypes.prng_key))
-    need, limit = per_row * rows, _memory_limit()
+    need, limit = state_row_bytes(strategy, problem, one) * rows, _memory_limit()
     if need > limit // 2:
         raise ConfigError(
             f"the colony state needs {need / 2**30:.1f} GiB ({rows} row(s) of "

@@ -11,7 +11,10 @@ skips finished cells), ``OUT/table.csv`` / ``table.json``, ``OUT/summary.json`` 
 from eaco_jax.sweep.cells import Cell, expand, groups_of, with_params
 from eaco_jax.sweep.local import plan, run_group
 from eaco_jax.sweep.runner import run_sweep
-from eaco_jax.sweep.spec import validate_spec
+from eaco_jax.sweep.spec import SweepSpec, load_spec, parse_spec
 
-__all__ = ["Cell", "expand", "groups_of", "plan", "run_group", "run_sweep", "validate_spec",
-           "with_params"]
+#: an alias of :func:`parse_spec`
+validate_spec = parse_spec
+
+__all__ = ["Cell", "SweepSpec", "expand", "groups_of", "load_spec", "parse_spec", "plan",
+           "run_group", "run_sweep", "validate_spec", "with_params"]

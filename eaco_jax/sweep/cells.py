@@ -13,7 +13,7 @@ import numpy as np
 
 from eaco_jax.errors import ConfigError
 from eaco_jax.runs.base import params_with
-from eaco_jax.sweep.spec import seeds_of, settings_list
+from eaco_jax.sweep.spec import SweepSpec, parse_spec, settings_list
 
 #: settings a sweep sets itself (seeds from the spec, outputs in the sweep folder)
 RESERVED = ("seed", "out")
@@ -39,14 +39,21 @@ def param_fields(params: Any) -> set[str]:
     return {f.name for f in dataclasses.fields(params)}
 
 
-def expand(spec: dict[str, Any], kind: Any) -> list[Cell]:
+def expand(spec: SweepSpec | dict[str, Any], kind: Any = None) -> list[Cell]:
     """Every cell of the sweep, each checked before anything runs: settings built, params
     known, numbers, inside their documented ranges; swept keys that are Params fields go to
     ``params``, the rest to ``args``. A swept Params field that the cells' switches leave
     unused everywhere is refused (naming the switch); unused in some cells, it is warned about.
-    Params fields may also be fixed in ``args`` (they apply to every cell)."""
-    base_args = dict(spec.get("args") or {})
-    seeds = seeds_of(spec)
+    Params fields may also be fixed in ``args`` (they apply to every cell). ``kind``:
+    default the spec's run kind."""
+    return expand_built(parse_spec(spec), kind)[0]
+
+
+def expand_built(spec: SweepSpec, kind: Any = None) -> tuple[list[Cell], dict[str, Any]]:
+    """:func:`expand`, and the run built for each group key (``Cell.group_key``)."""
+    kind = spec.run_kind if kind is None else kind
+    base_args = dict(spec.args)
+    seeds = list(spec.seeds)
     settings_names = {f.name for f in dataclasses.fields(kind.settings)}
     for key in base_args:
         if key in RESERVED:
@@ -93,8 +100,8 @@ def expand(spec: dict[str, Any], kind: Any) -> list[Cell]:
                     swept_in[name] = swept_in.get(name, 0) + 1
                     if name in dead:
                         dead_in.setdefault(name, []).append(dead[name])
-        ident = json.dumps([values, args, seeds, spec.get("command"), spec.get("kind"),
-                            base_params], sort_keys=True, default=str)
+        ident = json.dumps([values, args, seeds, spec.command, spec.kind_ref, base_params],
+                           sort_keys=True, default=str)
         digest = hashlib.sha256(ident.encode()).hexdigest()[:8]
         cells.append(Cell(f"c{index:03d}-{digest}", values, args, params))
     for name, switches in dead_in.items():
@@ -103,8 +110,8 @@ def expand(spec: dict[str, Any], kind: Any) -> list[Cell]:
                 f"sweep key {name!r} has no effect in any cell: it acts only with "
                 f"{switches[0]} (set that in args or the cells, or drop {name!r})")
         warnings.warn(f"sweep key {name!r} has no effect in {len(switches)} of {swept_in[name]} "
-                      f"cells (it acts only with {switches[0]})", stacklevel=2)
-    return cells
+                      f"cells (it acts only with {switches[0]})", stacklevel=3)
+    return cells, built_for
 
 
 def groups_of(cells: list[Cell]) -> list[list[Cell]]:

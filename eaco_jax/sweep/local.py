@@ -4,6 +4,7 @@ started again skips finished cells."""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import time
@@ -12,16 +13,46 @@ from typing import Any
 
 import numpy as np
 
+from eaco_jax.errors import ConfigError
 from eaco_jax.outputs import to_jsonable, write_json
-from eaco_jax.sweep.cells import Cell, expand, groups_of, with_params
-from eaco_jax.sweep.spec import run_kind, validate_spec
+from eaco_jax.sweep.cells import Cell, expand_built, groups_of, with_params
+from eaco_jax.sweep.spec import HOST_ROW_BYTES, SweepSpec, parse_spec
 
 
-def plan(spec: dict[str, Any]) -> tuple[Any, list[Cell]]:
-    """Validate the spec, find its run kind and expand (and check) every cell."""
-    spec = validate_spec(spec)
-    kind = run_kind(spec)
-    return kind, expand(spec, kind)
+def plan(spec: SweepSpec | dict[str, Any], *, max_cells: int | None = None
+         ) -> tuple[Any, list[Cell]]:
+    """Check the spec (parsed once), expand and check every cell, and refuse a group whose
+    rows (cells x seeds, one vmapped call) would not fit in memory; (run kind, cells)."""
+    spec = parse_spec(spec, max_cells=max_cells)
+    cells, built_for = expand_built(spec)
+    check_memory(spec, cells, built_for)
+    return spec.run_kind, cells
+
+
+def check_memory(spec: SweepSpec, cells: list[Cell], built_for: dict[str, Any]) -> None:
+    """Refuse, before anything is set up, a sweep whose largest group (its cells x seeds rows
+    as one vmapped call) needs more than half of the memory available: each row's colony
+    state (the driver's estimate) plus :data:`HOST_ROW_BYTES` of host memory."""
+    from eaco_jax.driver.minimize import memory_limit, state_row_bytes
+    from eaco_jax.runs.base import entered
+
+    largest = max(groups_of(cells), key=len)
+    rows = len(largest) * len(spec.seeds)
+    built = built_for[largest[0].group_key()]
+    state = 0
+    if built.strategy is not None:
+        params = built.params
+        if dataclasses.is_dataclass(params):
+            params = with_params(params, largest[0].params)
+        with entered(built):
+            state = state_row_bytes(built.strategy, built.problem, params)
+    need, limit = rows * (state + HOST_ROW_BYTES), memory_limit()
+    if need > limit // 2:
+        raise ConfigError(
+            f"the sweep's largest group needs about {need / 2**30:.1f} GiB ({len(largest):,} "
+            f"cell(s) x {len(spec.seeds):,} seeds = {rows:,} rows of {state + HOST_ROW_BYTES:,} "
+            f"bytes), more than half of the {limit / 2**30:.1f} GiB available; use fewer seeds, "
+            "or fewer cells sharing the same settings")
 
 
 def run_group(

@@ -22,20 +22,22 @@ from typing import Any
 from eaco_jax.errors import ConfigError
 from eaco_jax.sweep.cells import Cell
 from eaco_jax.sweep.local import run_group, write_cell
-from eaco_jax.sweep.spec import run_kind
+from eaco_jax.sweep.spec import SweepSpec, resolve_kind
 
 
-def _run_cell(spec: dict[str, Any], cell: dict[str, Any], seeds: list[int], out: str,
-              every: int | None) -> dict[str, Any]:
-    """Body of one Ray task: build, run (resuming from the cell's checkpoint), return record."""
+def _run_cell(command: str | None, kind_ref: str | None, cell: dict[str, Any],
+              seeds: list[int], out: str, every: int | None) -> dict[str, Any]:
+    """Body of one Ray task: build, run (resuming from the cell's checkpoint), return record.
+
+    The run kind travels by name (``command`` or ``kind_ref``), imported in the worker."""
     c = Cell(**cell)
     ck = Path(out) / "checkpoints" / c.id
-    return run_group(run_kind(spec), [c], seeds, checkpoint_dir=ck,
+    return run_group(resolve_kind(command, kind_ref), [c], seeds, checkpoint_dir=ck,
                      checkpoint_every=every)[c.id]
 
 
 def run_cells_on_ray(
-    spec: dict[str, Any],
+    spec: SweepSpec,
     cells: list[Cell],
     seeds: list[int],
     out: Path,
@@ -65,10 +67,11 @@ def run_cells_on_ray(
         ray.init(**kwargs)
         started = True
     task = ray.remote(num_cpus=1, max_retries=max_retries)(_run_cell)
-    every = spec.get("checkpoint_every")
+    every = spec.checkpoint_every
     out = Path(out).absolute()
     pending = {
-        task.remote(spec, dataclasses.asdict(c), seeds, str(out), every): c for c in cells
+        task.remote(spec.command, spec.kind_ref, dataclasses.asdict(c), seeds, str(out),
+                    every): c for c in cells
     }
     bar = None
     if progress:

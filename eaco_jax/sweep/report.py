@@ -12,7 +12,7 @@ import numpy as np
 
 from eaco_jax.outputs import write_json
 from eaco_jax.sweep.cells import Cell, groups_of
-from eaco_jax.sweep.spec import seeds_of
+from eaco_jax.sweep.spec import SweepSpec
 
 
 def summarise(record: dict[str, Any]) -> dict[str, Any]:
@@ -35,7 +35,7 @@ def summarise(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def write_tables(
-    out: Path, spec: dict[str, Any], cells: list[Cell], records: list[dict[str, Any]],
+    out: Path, spec: SweepSpec, cells: list[Cell], records: list[dict[str, Any]],
     wall: float, ran: int,
 ) -> dict[str, Any]:
     """table.csv / table.json (cell x seed rows), summary.json and summary.png."""
@@ -50,8 +50,8 @@ def write_tables(
     write_json(out / "table.json", {"columns": columns, "rows": rows})
     summary = [summarise(r) for r in records]
     record = {
-        "name": spec.get("name") or spec.get("command") or spec.get("kind"),
-        "out": str(out), "cells": len(cells), "seeds": seeds_of(spec), "runs": len(rows),
+        "name": spec.name or spec.command or spec.kind_ref,
+        "out": str(out), "cells": len(cells), "seeds": list(spec.seeds), "runs": len(rows),
         "cells_run_now": ran, "wall_seconds": wall,
         "compile_seconds": sum(float(r.get("compile_seconds") or 0.0) for r in records
                                if r.get("first_in_group", True)),

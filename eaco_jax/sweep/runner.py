@@ -10,27 +10,32 @@ from typing import Any
 from eaco_jax.errors import ConfigError, Interrupted
 from eaco_jax.sweep.local import plan, read_cell, run_local
 from eaco_jax.sweep.report import write_tables
-from eaco_jax.sweep.spec import seeds_of
+from eaco_jax.sweep.spec import SweepSpec, parse_spec
 
 
 def run_sweep(
-    spec: dict[str, Any],
+    spec: SweepSpec | dict[str, Any],
     out: str | Path,
     *,
     backend: str = "local",
     progress: bool = False,
     ray_options: dict[str, Any] | None = None,
+    max_cells: int | None = None,
 ) -> dict[str, Any]:
-    """Run (or finish) a sweep into folder ``out``; returns the summary record."""
+    """Run (or finish) a sweep into folder ``out``; returns the summary record.
+
+    ``spec``: a mapping (checked here, once) or a :class:`SweepSpec`; ``max_cells`` overrides
+    the spec's limit on the number of cells."""
     if backend not in ("local", "ray"):
         raise ConfigError(f"unknown sweep backend {backend!r}; use 'local' or 'ray'")
     out = Path(out)
+    spec = parse_spec(spec, max_cells=max_cells)
     kind, cells = plan(spec)
-    seeds = seeds_of(spec)
-    every = spec.get("checkpoint_every")
+    seeds = list(spec.seeds)
+    every = spec.checkpoint_every
     todo = [c for c in cells if read_cell(out, c) is None]
     out.mkdir(parents=True, exist_ok=True)
-    (out / "spec.json").write_text(json.dumps(spec, indent=1, default=str) + "\n")
+    (out / "spec.json").write_text(json.dumps(spec.to_dict(), indent=1, default=str) + "\n")
     t0 = time.perf_counter()
     if backend == "local":
         try:
