@@ -156,6 +156,17 @@ def test_all_nan_objective_is_an_error_naming_it():
         ea.minimize(p, seed=0, iterations=4)
 
 
+def test_infinite_objective_everywhere_is_not_feasible_and_warns():
+    p = ConstrainedProblem(lambda x: jnp.inf * (1.0 + x[0] ** 2), lower=[0.0, 0.0],
+                           upper=[1.0, 1.0], name="flat")
+    with pytest.warns(UserWarning, match="every evaluation of 'flat' returned inf") as caught:
+        res = ea.minimize(p, seed=[0, 1], iterations=4)
+    assert not np.any(res.feasible) and np.all(np.isinf(res.best_cost))
+    assert np.all(np.asarray(res.violation) == 0.0)  # no constraint is violated: f is the fault
+    assert not any("re-checked in float64" in str(w.message) for w in caught)
+    assert not p.host_check(np.zeros(2))["feasible"]
+
+
 # --------------------------------------------------------------------------- item 3: ranges
 @pytest.mark.parametrize("field, value", [("rho", 1.5), ("q0", 1.5), ("alpha", -1.0),
                                           ("beta", float("nan")), ("use_chaos", 2)])

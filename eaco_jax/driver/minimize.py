@@ -652,6 +652,14 @@ def minimize(
                    max_evaluations=max_evaluations, compile_seconds=init_seconds)
 
 
+def shown_best(problem: Any, best_cost: Any) -> float:
+    """The best of the rows' ``best_cost`` as the user reads it: the problem's
+    ``shown_best(cost)`` if it has one (a maximised fitness shows its own sign), else the cost."""
+    best = float(np.min(np.asarray(best_cost)))
+    shown = getattr(problem, "shown_best", None)
+    return float(shown(best)) if callable(shown) else best
+
+
 def _exhausted(strategy: Strategy, problem: Any, state: State, budget: int | None) -> bool:
     """Whether no row can start another iteration within ``budget``."""
     if budget is None:
@@ -793,7 +801,7 @@ def run(
                 tally.check(problem)
                 if bar is not None:
                     bar.update(length)
-                    bar.set_postfix(best=float(np.min(np.asarray(state.best_cost))))
+                    bar.set_postfix(best=shown_best(problem, state.best_cost))
                 info = Progress(done, run_seconds, compile_seconds)
                 fired_names = [name for name, rule in rules if rule(state, info)]  # every rule
                 if fired_names:  # sees every chunk (callbacks too)
@@ -863,7 +871,7 @@ def _result(strategy: Strategy, problem: Any, state: State, history: list[dict[s
             extra["violation"] = _rows([c["violation"] for c in checked], batched)
             extra["feasible"] = _rows([c["feasible"] for c in checked], batched, bool)
             extra["tolerance"] = checked[0].get("tolerance")
-            _warn_feasibility(state, extra["feasible"], problem)
+            _warn_feasibility(state, extra["feasible"], extra["f"], problem)
     dtypes = {x.dtype for x in _float_leaves(problem)}
     return Result(
         best_solution=best_solution,
@@ -910,12 +918,25 @@ def host_checks(problem: Any, best_solution: np.ndarray, batched: bool) -> list[
     return out
 
 
-def _warn_feasibility(state: State, feasible: np.ndarray, problem: Any) -> None:
+def _warn_feasibility(state: State, feasible: np.ndarray, f: np.ndarray, problem: Any) -> None:
+    """One warning line where the reported best is no solution: its objective is not finite
+    (the best of the least-violating evaluations was +inf, -inf or NaN), or a point feasible
+    in the run's precision violates a constraint in float64."""
+    f = np.asarray(f, np.float64)
+    if not np.all(np.isfinite(f)):
+        name = getattr(problem, "name", type(problem).__name__)
+        worst = f[~np.isfinite(f)].reshape(-1)[0]
+        which = ("with the least violation found " if int(getattr(problem, "num_inequality", 0))
+                 + int(getattr(problem, "num_equality", 0)) else "")
+        warnings.warn(
+            f"every evaluation of {name!r} {which}returned {worst} (reported feasible=False): "
+            "its objective is not finite across the search box; check the function and its "
+            "bounds", stacklevel=3)
     v = getattr(state, "best_violation", None)
     if v is None:
         return
     claimed = np.asarray(v) <= 0
-    if np.any(claimed & ~np.asarray(feasible)):
+    if np.any(claimed & ~np.asarray(feasible) & np.isfinite(f)):
         warnings.warn(
             f"{getattr(problem, 'name', '')!r}: a point feasible in the run's precision violates "
             "a constraint when re-checked in float64; run with precision='float64' (or 'auto')",

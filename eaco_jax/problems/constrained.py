@@ -137,8 +137,8 @@ class ConstrainedProblem:
         """Objective and violation of one point, recomputed on the host in float64.
 
         What :func:`~eaco_jax.minimize` reports: ``f``, ``violation``, ``feasible`` (every
-        ``g <= 0`` and every ``|h| <= 1e-4``: the tolerances, also returned) and ``cost``
-        (``f`` if feasible, else +inf). A point outside the bounds raises
+        ``g <= 0`` and every ``|h| <= 1e-4``: the tolerances, also returned; and a finite
+        ``f``) and ``cost`` (``f`` if feasible, else +inf). A point outside the bounds raises
         :class:`ProblemError` (the driver turns that into a bug report).
         """
         point = np.asarray(x, np.float64).reshape(-1)
@@ -158,9 +158,9 @@ class ConstrainedProblem:
             f, v = float(f), float(v)
         if math.isnan(v):
             v = math.inf
-        feasible = v <= 0.0
+        feasible = v <= 0.0 and math.isfinite(f)  # an infinite or NaN f is no solution
         return {"f": f, "violation": v, "feasible": feasible,
-                "cost": f if feasible and not math.isnan(f) else math.inf,
+                "cost": f if feasible else math.inf,
                 "tolerance": {"inequality": 0.0, "equality": EQUALITY_TOLERANCE}}
 
     # ------------------------------------------------------------------ batched
