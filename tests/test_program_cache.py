@@ -4,6 +4,8 @@ damaged entries and code from outside the package are traced as before."""
 
 from __future__ import annotations
 
+import os
+import pickle
 import subprocess
 import sys
 
@@ -81,10 +83,7 @@ def test_a_fresh_process_loads_it(cache):
         "r = ea.minimize(load_tsplib('eil51'), GraphEACO(num_ants=16, local_search='2opt'),\n"
         "                seed=3, iterations=12, chunk_size=4)\n"
         "print(','.join(how), float(r.best_cost))\n")
-    env = {"JAX_PLATFORMS": "cpu"}
-    import os
-
-    env = {**os.environ, **env}
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
     outs = [subprocess.run([sys.executable, "-c", code, str(cache)], capture_output=True,
                            text=True, env=env, check=True).stdout.split()[-2:]
             for _ in range(2)]
@@ -155,3 +154,170 @@ def test_batched_seeds_settings_and_capped_runs_load_the_same(cache, monkeypatch
     assert how == ["loaded", "loaded"]
     for a, b in zip(plain, loaded, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+# ------------------------------------------------------------ entries are data, verified
+
+
+def _chunk_entry(cache):
+    """The chunk's entry (the larger of the run's two programs)."""
+    return max(cache.glob("*.jaxexport"), key=lambda p: p.stat().st_size)
+
+
+def _valid(entry):
+    header, _ = program_cache._unpack(entry.read_bytes())
+    return header["key"] == entry.stem
+
+
+class _Payload:
+    """Unpickling this creates ``path``: what a hostile writer of a shared cache would run."""
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def __reduce__(self):
+        return (open, (self.path, "w"))
+
+
+def test_a_pickled_entry_is_never_unpickled(cache, tmp_path_factory):
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="none")
+    first = _run(strategy, problem)
+    marks = tmp_path_factory.mktemp("marks")
+    pickle.loads(pickle.dumps(_Payload(marks / "control")))
+    assert (marks / "control").exists()  # the payload is live: unpickling it runs it
+    entry = _chunk_entry(cache)
+    entry.write_bytes(pickle.dumps(_Payload(marks / "pwned")))
+    driver.clear_compiled()
+    with pytest.warns(UserWarning, match="not an eaco_jax program entry") as caught:
+        again = _run(strategy, problem)
+    assert not (marks / "pwned").exists()
+    assert len([w for w in caught if "program cache" in str(w.message)]) == 1
+    _same(again, first)
+    assert _valid(entry)  # written again, as data
+
+
+@pytest.mark.parametrize("where", ["program", "header"])
+def test_one_flipped_bit_is_caught_by_the_digest(cache, where):
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="none")
+    first = _run(strategy, problem)
+    entry = _chunk_entry(cache)
+    raw = bytearray(entry.read_bytes())
+    _, data = program_cache._unpack(bytes(raw))
+    at = (len(raw) - len(data) // 2 if where == "program"
+          else raw.index(b'"best_cost"') + 5)  # a metric's name in the output description
+    raw[at] ^= 0x01
+    entry.write_bytes(bytes(raw))
+    driver.clear_compiled()
+    with pytest.warns(UserWarning, match="sha256 does not match") as caught:
+        again = _run(strategy, problem)
+    assert len([w for w in caught if "program cache" in str(w.message)]) == 1
+    _same(again, first)
+    assert _valid(entry)
+
+
+def test_an_entry_of_another_program_under_this_name_is_rebuilt(cache):
+    """The initialiser's entry copied over the chunk's (or two entries swapped by name)."""
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="none")
+    first = _run(strategy, problem)
+    entries = sorted(cache.glob("*.jaxexport"), key=lambda p: p.stat().st_size)
+    entries[1].write_bytes(entries[0].read_bytes())
+    driver.clear_compiled()
+    with pytest.warns(UserWarning, match="holds the program of key") as caught:
+        again = _run(strategy, problem)
+    assert len([w for w in caught if "program cache" in str(w.message)]) == 1
+    _same(again, first)
+    assert _valid(entries[1]) and _valid(entries[0])
+
+
+def _forge(entry, header=None, data=None):
+    """Rewrite ``entry`` with a valid digest: damage only a writer could make on purpose."""
+    old_header, old_data = program_cache._unpack(entry.read_bytes())
+    entry.write_bytes(program_cache._pack(header or old_header,
+                                          old_data if data is None else data))
+
+
+def _plus_one(x):
+    return x + 1
+
+
+def test_a_program_that_fails_to_lower_is_traced_again(cache):
+    x3, x4 = jax.numpy.arange(3.0), jax.numpy.arange(4.0)
+    a, b = "a" * 32, "b" * 32
+    program_cache.compiled(jax.jit(_plus_one), (x3,), a)
+    program_cache.compiled(jax.jit(_plus_one), (x4,), b)
+    _forge(cache / f"{a}.jaxexport", data=program_cache._unpack(
+        (cache / f"{b}.jaxexport").read_bytes())[1])  # another shape's program
+    with pytest.warns(UserWarning, match="program cache") as caught:
+        run, how = program_cache.compiled(jax.jit(_plus_one), (x3,), a)
+    assert len(caught) == 1 and how == "exported"
+    np.testing.assert_array_equal(run(x3), x3 + 1)
+    assert _valid(cache / f"{a}.jaxexport")
+
+
+def test_a_program_whose_first_call_fails_is_traced_again(cache):
+    """A header describing another output structure fails when the result is rebuilt."""
+    x = jax.numpy.arange(3.0)
+    key = "c" * 32
+    program_cache.compiled(jax.jit(_plus_one), (x,), key)
+    entry = cache / f"{key}.jaxexport"
+    header, _ = program_cache._unpack(entry.read_bytes())
+    _forge(entry, header={**header, "out_tree": ["tuple", None, [None, None]],
+                          "out_keys": [None, None]})
+    run, how = program_cache.compiled(jax.jit(_plus_one), (x,), key)
+    assert how == "loaded"
+    with pytest.warns(UserWarning, match="program cache") as caught:
+        out = run(x)
+    assert len(caught) == 1 and not entry.exists()
+    np.testing.assert_array_equal(out, x + 1)
+    np.testing.assert_array_equal(run(x), x + 1)  # the traced program from now on
+
+
+def test_an_output_type_outside_the_package_is_refused(cache):
+    x = jax.numpy.arange(3.0)
+    key = "d" * 32
+    program_cache.compiled(jax.jit(_plus_one), (x,), key)
+    entry = cache / f"{key}.jaxexport"
+    header, _ = program_cache._unpack(entry.read_bytes())
+    _forge(entry, header={**header, "out_tree": ["subprocess:Popen", None, [None]]})
+    with pytest.warns(UserWarning, match="is not of this package"):
+        run, how = program_cache.compiled(jax.jit(_plus_one), (x,), key)
+    assert how == "exported"
+    np.testing.assert_array_equal(run(x), x + 1)
+
+
+@pytest.fixture
+def partitionable():
+    before = jax.config.jax_threefry_partitionable
+    yield
+    jax.config.update("jax_threefry_partitionable", before)
+    driver.clear_compiled()
+
+
+def test_jax_options_read_while_tracing_are_in_the_key(cache, partitionable):
+    """JAX_THREEFRY_PARTITIONABLE=0 draws other random numbers: a program traced with the
+    default must not be loaded, and the run equals an uncached one with the option."""
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="none")
+    default = _run(strategy, problem)  # on disk now
+    key = program_cache.program_key(("x",))
+    jax.config.update("jax_threefry_partitionable", False)
+    assert program_cache.program_key(("x",)) != key
+    driver.clear_compiled()
+    cached = _run(strategy, problem)
+    program_cache.set_folder(None)
+    driver.clear_compiled()
+    plain = _run(strategy, problem)
+    assert plain[0] != default[0]  # the option changes this run's answer
+    _same(cached, plain)
+
+
+def test_a_compile_cache_that_is_a_file_is_said_once(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    env = {**os.environ, "JAX_PLATFORMS": "cpu", "EACO_COMPILE_CACHE": str(afile)}
+    res = subprocess.run([sys.executable, "-m", "eaco_jax", "tsp", "--help"], env=env,
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert lines == [f"warning: compile cache off: EACO_COMPILE_CACHE={afile} is a file, not a "
+                     "folder; point it at a writable folder, or pass --no-compile-cache"]
+    assert afile.read_text() == "x"

@@ -17,7 +17,15 @@ marked once and traced as before. An entry is keyed by a digest of everything th
 program, the package's source included, so a code change never loads a stale program; for
 that reason only programs built of this package's own strategies and problems are kept (a
 user's own class, or a function held in a problem, is traced in every process, as a sharded
-program is). A damaged entry is traced and written again, with a warning.
+program is).
+
+An entry is data, never code: a magic line, the sha256 of the rest, a one-line JSON header
+(format, key, argument signature, which leaves are PRNG keys, the output pytree described by
+node type names and JSON aux data, resolved only among built-in containers and this package's
+own classes) and the ``jax.export`` bytes. Nothing read from the folder is unpickled, so a
+writer of a shared cache cannot run code as its readers, and the key covers the JAX
+configuration read while tracing (:func:`trace_flags`). An entry that fails to verify,
+deserialise, lower or make its first call is removed with one warning and traced again.
 """
 
 from __future__ import annotations
@@ -25,8 +33,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
+import importlib
+import json
 import os
-import pickle
 import tempfile
 import warnings
 from collections.abc import Callable
@@ -86,13 +95,30 @@ def source_digest() -> str:
     return h.hexdigest()
 
 
+#: parts of JAX option names that never change a traced program: where caches, logs and
+#: dumps go, and how errors are reported
+_NOT_TRACE = ("cache", "log", "dump", "pprint", "traceback", "explain", "timeout",
+              "transfer_guard", "visible_devices", "pgle")
+
+
+def trace_flags() -> tuple[tuple[str, str], ...]:
+    """The JAX options in effect (this thread's, as tracing reads them) that may shape a
+    traced program: every option but those naming caches, logs, dumps and error reporting.
+    A list of options that matter would miss the next one JAX adds (a stale program with
+    another answer); an extra option only costs a trace."""
+    return tuple((name, repr(getattr(jax.config, name, value)))
+                 for name, value in sorted(jax.config.values.items())
+                 if not any(part in name for part in _NOT_TRACE))
+
+
 def program_key(parts: tuple) -> str | None:
-    """The entry's digest for these program-shaping ``parts`` (None: not cacheable, e.g. a
-    strategy whose repr holds a function's address, which differs in every process)."""
+    """The entry's digest for these program-shaping ``parts`` and the JAX options that shape
+    a trace (None: not cacheable, e.g. a strategy whose repr holds a function's address,
+    which differs in every process)."""
     import jaxlib
 
     text = repr((parts, jax.__version__, jaxlib.__version__, jax.default_backend(),
-                 [d.device_kind for d in jax.local_devices()[:1]]))
+                 [d.device_kind for d in jax.local_devices()[:1]], trace_flags()))
     if " at 0x" in text:
         return None
     return hashlib.sha256((source_digest() + text).encode()).hexdigest()[:32]
@@ -158,19 +184,25 @@ def compiled(fn: Callable, args: tuple, key: str | None) -> tuple[Callable, str]
     leaves, in_def = jax.tree.flatten(args)
     in_keys = _key_impls(leaves)
     plain = _key_data(leaves, in_keys)  # PRNG keys cross the exported interface as uint32
+    signature = _arg_signature(plain)
     entry, mark = where / f"{key}{_SUFFIX}", where / f"{key}{_MARK}"
     if entry.is_file():
         try:
-            blob = pickle.loads(entry.read_bytes())
-            exp = export.deserialize(bytearray(blob["exported"]))
-            out_def, out_keys = blob["out_tree"], blob["out_keys"]
-        except Exception as err:  # noqa: BLE001 - a damaged entry is rebuilt, as JAX's cache does
-            warnings.warn(f"eaco_jax program cache: {entry.name} unreadable ({err}); "
-                          "tracing again", stacklevel=3)
-            entry.unlink(missing_ok=True)
-        else:
+            header, data = _unpack(entry.read_bytes())
+            if header.get("key") != key:
+                raise ValueError(f"it holds the program of key {str(header.get('key'))[:32]}")
+            if header.get("args") != signature or header.get("in_keys") != in_keys:
+                raise ValueError("its arguments differ from this call's")
+            out_def, out_keys = _tree_from_data(header["out_tree"]), list(header["out_keys"])
+            if out_def.num_leaves != len(out_keys):
+                raise ValueError("its output description is inconsistent")
+            exp = export.deserialize(bytearray(data))
             call = jax.jit(exp.call).lower(*plain).compile()
-            return _wrap(call, in_keys, out_def, out_keys), "loaded"
+        except Exception as err:  # noqa: BLE001 - any damage: rebuilt, as JAX's cache does
+            _discard(entry, err)
+        else:
+            return _checked_first_call(_wrap(call, in_keys, out_def, out_keys), fn, entry), \
+                "loaded"
     if mark.is_file():
         return fn.lower(*args).compile(), "traced"
     box: dict[str, Any] = {}
@@ -188,10 +220,138 @@ def compiled(fn: Callable, args: tuple, key: str | None) -> tuple[Callable, str]
     except NotImplementedError as err:  # host callbacks have no serialised form
         _write(mark, str(err).encode())
         return fn.lower(*args).compile(), "traced"
-    _write(entry, pickle.dumps({"exported": bytes(data), "out_tree": box["out_tree"],
-                                "out_keys": box["out_keys"]}))
     call = jax.jit(exp.call).lower(*plain).compile()
-    return _wrap(call, in_keys, box["out_tree"], box["out_keys"]), "exported"
+    run = _wrap(call, in_keys, box["out_tree"], box["out_keys"])
+    try:
+        out_tree = _tree_to_data(box["out_tree"])
+    except ValueError as err:  # an output node of a type not ours: kept in this process only
+        _write(mark, str(err).encode())
+        return run, "traced"
+    _write(entry, _pack({"format": _FORMAT, "key": key, "args": signature, "in_keys": in_keys,
+                         "out_keys": box["out_keys"], "out_tree": out_tree}, bytes(data)))
+    return run, "exported"
+
+
+def _discard(entry: Path, err: BaseException) -> None:
+    """One warning for a rejected entry, which is removed so the next run writes it anew."""
+    reason = (str(err).strip().splitlines() or [type(err).__name__])[0][:200]
+    try:
+        entry.unlink(missing_ok=True)
+        done = "removed it, tracing again"
+    except OSError as why:
+        done = f"tracing again; cannot remove it ({why.strerror}): delete it by hand"
+    warnings.warn(f"eaco_jax program cache: entry {entry} unreadable ({reason}); {done}",
+                  stacklevel=4)
+
+
+def _checked_first_call(run: Callable, fn: Callable, entry: Path) -> Callable:
+    """``run``, whose first call falls back to ``fn`` traced and compiled for the same
+    arguments if the loaded program fails (one warning, the entry removed)."""
+    box: dict[str, Callable] = {}
+
+    def first(*args):
+        if "run" in box:
+            return box["run"](*args)
+        try:
+            out = run(*args)
+        except Exception as err:  # noqa: BLE001 - a program that does not fit its call
+            _discard(entry, err)
+            box["run"] = fn.lower(*args).compile()
+            return box["run"](*args)
+        box["run"] = run
+        return out
+
+    return first
+
+
+_MAGIC, _FORMAT = b"eaco_jax exported program\n", 1
+
+
+def _pack(header: dict, data: bytes) -> bytes:
+    """An entry: the magic line, the sha256 of everything after its line, the header as one
+    JSON line, then the serialised program."""
+    body = json.dumps(header, sort_keys=True, separators=(",", ":")).encode() + b"\n" + data
+    return _MAGIC + hashlib.sha256(body).hexdigest().encode() + b"\n" + body
+
+
+def _unpack(raw: bytes) -> tuple[dict, bytes]:
+    """The header and program bytes of an entry, verified (ValueError if anything is off)."""
+    if not raw.startswith(_MAGIC):
+        raise ValueError("not an eaco_jax program entry")
+    digest, _, body = raw[len(_MAGIC):].partition(b"\n")
+    if hashlib.sha256(body).hexdigest().encode() != digest:
+        raise ValueError("its sha256 does not match its contents")
+    line, _, data = body.partition(b"\n")
+    header = json.loads(line)
+    if not isinstance(header, dict) or header.get("format") != _FORMAT:
+        raise ValueError("unknown entry format")
+    return header, data
+
+
+def _arg_signature(plain: list) -> list[str]:
+    """Shape, dtype and weak type of each flat argument: what the program was exported for."""
+    avals = [jax.typeof(x) for x in plain]
+    return [f"{a.shape}:{a.dtype}:{int(a.weak_type)}" for a in avals]
+
+
+_BUILTIN_NODES: dict[str, type] = {"tuple": tuple, "list": list, "dict": dict,
+                                   "None": type(None)}
+
+
+def _aux_to_data(value: Any) -> Any:
+    """A node's aux data as JSON (tuples tagged); ValueError for anything else."""
+    if value is None or isinstance(value, bool | int | float | str):
+        return value
+    if isinstance(value, tuple):
+        return {"tuple": [_aux_to_data(v) for v in value]}
+    if isinstance(value, list):
+        return [_aux_to_data(v) for v in value]
+    raise ValueError(f"output pytree aux data of type {type(value).__name__} is not data")
+
+
+def _aux_from_data(value: Any) -> Any:
+    if isinstance(value, dict):
+        return tuple(_aux_from_data(v) for v in value["tuple"])
+    if isinstance(value, list):
+        return [_aux_from_data(v) for v in value]
+    return value
+
+
+def _tree_to_data(td: Any) -> Any:
+    """A treedef as JSON: None for a leaf, else ``[type name, aux, children]``, where the
+    type is a built-in container or a class of this package (ValueError otherwise)."""
+    node = td.node_data()
+    if node is None:
+        return None
+    kind, aux = node
+    name = next((n for n, t in _BUILTIN_NODES.items() if t is kind), None)
+    if name is None:
+        module = getattr(kind, "__module__", "") or ""
+        if module.split(".")[0] != "eaco_jax":
+            raise ValueError(f"output pytree node {kind!r} is not of this package")
+        name = f"{module}:{kind.__qualname__}"
+    return [name, _aux_to_data(aux), [_tree_to_data(c) for c in td.children()]]
+
+
+def _tree_from_data(data: Any) -> Any:
+    """The treedef :func:`_tree_to_data` described; a class is looked up only in this
+    package's modules, never called or unpickled here."""
+    if data is None:
+        return jax.tree.structure(0)
+    name, aux, children = data
+    kind = _BUILTIN_NODES.get(name)
+    if kind is None:
+        module, _, qualname = name.partition(":")
+        if module != "eaco_jax" and not module.startswith("eaco_jax."):
+            raise ValueError(f"output node type {name[:80]} is not of this package")
+        kind = importlib.import_module(module)
+        for part in qualname.split("."):
+            kind = getattr(kind, part)
+        if not isinstance(kind, type):
+            raise ValueError(f"output node type {name[:80]} is not a class")
+    return jax.tree_util.PyTreeDef.from_node_data_and_children(
+        jax.tree_util.default_registry, (kind, _aux_from_data(aux)),
+        [_tree_from_data(c) for c in children])
 
 
 def _key_impls(leaves: list) -> list[str | None]:
