@@ -39,22 +39,41 @@ def _main(
 ) -> None:
     """Enhanced elitist-mutated ant colony optimisation: TSP, constrained problems, gaits."""
     if compile_cache:
+        from eaco_jax.cli.common import one_line_warnings
+
+        one_line_warnings()  # the cache's own warning, before any command sets it
         enable_compile_cache()
 
 
 def enable_compile_cache(folder: str | None = None) -> str:
-    """Turn on JAX's persistent compilation cache (every compiled program is kept on disk)."""
+    """Turn on JAX's persistent compilation cache (every compiled program is kept on disk).
+
+    Returns the folder, or "" with one warning when it cannot be used (a file, unwritable):
+    the run goes on without the cache, which costs only compile time."""
     import os
+    import warnings
     from pathlib import Path
 
     import jax
 
+    from_env = not folder and bool(os.environ.get("EACO_COMPILE_CACHE"))
     path = folder or os.environ.get("EACO_COMPILE_CACHE") or str(
         Path.home() / ".cache" / "eaco_jax" / "jax")
+    why = ""
     try:
         Path(path).mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return ""  # an unwritable home: run without the cache
+        if not os.access(path, os.W_OK | os.X_OK):
+            why = "is not writable"
+    except FileExistsError:
+        why = "is a file, not a folder"
+    except OSError as err:
+        why = f"cannot be created ({err.strerror})"
+    if why:
+        what, fix = ((f"EACO_COMPILE_CACHE={path}", "point it at a writable folder") if from_env
+                     else (path, "set EACO_COMPILE_CACHE to a writable folder"))
+        warnings.warn(f"compile cache off: {what} {why}; {fix}, or pass --no-compile-cache",
+                      stacklevel=2)
+        return ""
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
