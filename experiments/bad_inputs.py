@@ -260,6 +260,27 @@ def main() -> None:
     record(f"read-only checkpoint folder{note}", "API",
            lambda: ea.minimize(burma, g, checkpointing=ea.Checkpointing(ro / "ck")).stop_reason)
 
+    # ------------------------------------------------------------ sweeps: sizes and types
+    def sweep_file(name: str, body: str) -> str:
+        path = TMP / name
+        path.write_text(body)
+        return str(path)
+
+    record("sweep cell `{q0: [0.5, 0.6]}` (a list value)", "sweep", lambda: cli(
+        "sweep", sweep_file("list.yaml", "command: tsp\nargs: {instance: burma14}\n"
+                            "cells: [{q0: [0.5, 0.6]}]\n")))
+    record("sweep file of nested YAML aliases (602 bytes, 10**10 leaves)", "sweep", lambda: cli(
+        "sweep", sweep_file("bomb.yaml", "command: tsp\n" + "".join(
+            f"l{i}: &l{i} [{', '.join([f'*l{i - 1}' if i else '0'] * 10)}]\n"
+            for i in range(10)) + "cells: [{q0: *l9}]\n")))
+    record("sweep grid of 9 keys x 10 values (10**9 cells)", "sweep", lambda: cli(
+        "sweep", sweep_file("grid.yaml", "command: tsp\nargs: {instance: burma14}\ngrid: {"
+                            + ", ".join(f"k{i}: [0, 1, 2, 3, 4, 5, 6, 7, 8, 9]" for i in range(9))
+                            + "}\n")))
+    record("sweep `seeds: 1048576`", "sweep", lambda: cli(
+        "sweep", sweep_file("seeds.yaml", "command: tsp\nargs: {instance: burma14}\n"
+                            "seeds: 1048576\n")))
+
     lines = [
         "# Bad inputs and faults, and what each gets now",
         "",

@@ -195,7 +195,7 @@ TSP = {"command": "tsp", "args": {"instance": "burma14", "ants": 4, "iterations"
 def test_list_valued_cell_refused_before_anything_is_built(tmp_path):
     _refused_fast(lambda: sw.plan({**TSP, "cells": [{"q0": [0.5, 0.6]}]}),
                   r"sweep cell 0 key 'q0': \[0.5, 0.6\] is a list, not one value; give each "
-                  "value its own cell")
+                  r"value its own cell, or sweep them with grid: \{q0: \[\.\.\.\]\}")
     _refused_fast(lambda: sw.plan({**SPEC, "grid": {"scale": [[0.5], 0.6]}}),
                   r"grid entry 'scale' value 0: \[0.5\] is a list, not one value")
     _refused_fast(lambda: sw.plan({**SPEC, "args": {"iterations": {"a": 1}}}),

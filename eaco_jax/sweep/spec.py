@@ -208,8 +208,9 @@ def _from_raw(raw: Any, max_cells: int | None) -> SweepSpec:
                                and all(isinstance(c, dict) for c in raw["cells"])):
         raise ConfigError("sweep 'cells' must be a list of mappings")
     args = _scalars(raw.get("args") or {}, "sweep args")
-    cells = tuple(_scalars(c, f"sweep cell {i}", hint="give each value its own cell, or put "
-                           "the values in grid:") for i, c in enumerate(raw.get("cells") or []))
+    cells = tuple(_scalars(c, f"sweep cell {i}", hint="give each value its own cell, or sweep "
+                           "them with grid: {{{key}: [...]}}")
+                  for i, c in enumerate(raw.get("cells") or []))
     grid: dict[str, tuple[Scalar, ...]] = {}
     for name, values in (raw.get("grid") or {}).items():
         if not isinstance(values, list) or not values:
@@ -255,7 +256,8 @@ def _scalar(value: Any, where: str, hint: str) -> Scalar:
 
 def _scalars(mapping: dict[Any, Any], where: str, hint: str = "a setting takes one number, "
              "string or boolean") -> dict[str, Scalar]:
-    return {_name(k, where): _scalar(v, f"{where} key {k!r}", hint) for k, v in mapping.items()}
+    return {_name(k, where): _scalar(v, f"{where} key {k!r}", hint.format(key=k))
+            for k, v in mapping.items()}
 
 
 def _positive(what: str, value: Any) -> int:
