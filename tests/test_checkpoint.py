@@ -481,3 +481,151 @@ def test_history_read_prefers_the_segments_that_chain(tmp_path):
     assert _steps(ck) == [5, 10, 15, 20, 25] and not (ck / "corrupt").exists()
     assert _segment_names(next((ck / "old").iterdir())) == [
         f"{0:012d}-{10:012d}.npz", f"{10:012d}-{20:012d}.npz"]
+
+
+def _toy_kind():
+    """A small checkpointed run kind of one's own (registered; pop it from registry._KINDS)."""
+    import dataclasses
+
+    from eaco_jax.runs import Built, RunKind, registry
+
+    @dataclasses.dataclass(frozen=True)
+    class ToySettings:
+        iterations: int = 30
+        seed: int = 0
+
+    def build(s):
+        return Built(_problem(), RandomSearch(), None, {"iterations": s.iterations})
+
+    def run(s, *, progress=False, checkpointing=None):
+        b = build(s)
+        res = ea.minimize(b.problem, b.strategy, seed=s.seed, chunk_size=5, progress=progress,
+                          checkpointing=checkpointing, **b.budget)
+        return {"best": float(res.best_cost), "iterations": res.iterations}
+
+    return registry.register(RunKind("toy", ToySettings, build, run)), ToySettings
+
+
+def test_resume_after_every_checkpoint_was_corrupt_names_the_command(tmp_path):
+    """Every step corrupt: the first `eaco resume` moves them aside, and it and every later
+    one say so and print the command that starts the run again (from run.json); nothing
+    moved aside is lost."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from eaco_jax.cli import app
+    from eaco_jax.runs import registry
+    from eaco_jax.runs.base import checkpointing_for
+
+    kind, settings = _toy_kind()
+    try:
+        s = settings(iterations=20, seed=4)
+        ck = tmp_path / "ck"
+        kind.run(s, checkpointing=checkpointing_for("toy", s, ck, 10))
+        assert json.loads((ck / "run.json").read_text())["settings"] == {"iterations": 20,
+                                                                         "seed": 4}
+        for step in _steps(ck):
+            _damage(ck / str(step), "flip")
+        history = _fingerprint(ck / "history")
+        want = (f"every checkpoint in {ck} was corrupt (moved to {ck / 'corrupt'}); start again "
+                f"with: eaco toy --iterations 20 --seed 4 --checkpoint-dir {ck} "
+                "--checkpoint-every 10")
+        with pytest.warns(UserWarning, match="corrupt"):
+            first = CliRunner().invoke(app, ["resume", str(ck)])
+        again = CliRunner().invoke(app, ["resume", str(ck)])
+        for out in (first, again):
+            assert out.exit_code == 2
+            assert out.output.strip().splitlines()[-1] == f"error: {want}"
+        assert len(list((ck / "corrupt").iterdir())) == 2
+        assert _fingerprint(ck / "history") == history
+    finally:
+        registry._KINDS.pop("toy", None)
+
+
+@pytest.mark.parametrize("name, values", [
+    ("tsp", {"instance": "burma14", "ants": 8, "local_search": "none", "max_seconds": 2.5,
+             "out": "o u t"}),
+    ("gait", {"video": False, "iterations": 3}),
+])
+def test_command_line_parses_back_to_the_settings(tmp_path, name, values):
+    """The command printed to start a run again is what the `eaco <kind>` command parses
+    into the same settings (flags generated from the settings, booleans as --x/--no-x)."""
+    import shlex
+
+    import typer
+
+    from eaco_jax.cli import app
+    from eaco_jax.runs import get
+    from eaco_jax.runs.base import command_line
+
+    kind = get(name)
+    s = kind.make_settings(values)
+    words = shlex.split(command_line(name, s, tmp_path / "ck", 5))
+    assert words[:2] == ["eaco", name] and ("--no-video" in words) == (name == "gait")
+    ctx = typer.main.get_command(app).commands[name].make_context(name, words[2:])
+    params = dict(ctx.params)
+    assert params.pop("checkpoint_dir") == tmp_path / "ck"
+    assert params.pop("checkpoint_every") == 5
+    assert not params.pop("json_out") and not params.pop("quiet")
+    assert kind.make_settings(params) == s
+
+
+def _no_space_for_history_from(monkeypatch, start: int) -> None:
+    """The disk refuses (ENOSPC) the fsync of every history segment from ``start`` on: an
+    OSError injected at the lowest level of the write, the file's fsync."""
+    import errno
+    import os
+
+    real = os.fsync
+
+    def fsync(fd):
+        name = os.readlink(f"/proc/self/fd/{fd}")
+        if "/history/.tmp-" in name and int(name.rsplit("-", 2)[-2]) >= start:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+
+
+def test_disk_full_during_a_save_is_one_line_and_resumes_bit_identically(tmp_path, monkeypatch):
+    unbroken = _run(tmp_path / "ref", iterations=30, checkpoint_every=10)
+    ck = tmp_path / "ck"
+    with monkeypatch.context() as m:
+        _no_space_for_history_from(m, 20)
+        with pytest.raises(CheckpointError) as err:
+            _run(ck, iterations=30, checkpoint_every=10)
+    assert str(err.value) == (
+        f"could not write checkpoint step 30 in {ck} (No space left on device); the last good "
+        "step is 20: free space, then call minimize() again with the same Checkpointing")
+    assert _steps(ck) == [10, 20] and not list((ck / "history").glob(".tmp-*"))
+    _same(unbroken, _run(ck, iterations=30, checkpoint_every=10))
+
+
+def test_a_real_full_disk_during_a_save_is_one_line(tmp_path):
+    """A size-limited tmpfs fills during a save (orbax reports it inside a ValueError): one
+    line; after space is freed the run resumes and equals an unbroken one. Needs mount."""
+    import subprocess
+
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=280k", "tmpfs", str(mnt)],
+                      capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here (needs root)")
+    try:
+        ck = mnt / "ck"
+        kw = dict(iterations=200, checkpoint_every=10, keep=100)
+        with pytest.raises(CheckpointError) as err:
+            _run(ck, **kw)
+        text = str(err.value)
+        step = int(text.split("could not write checkpoint step ")[1].split()[0])
+        assert text == (
+            f"could not write checkpoint step {step} in {ck} (No space left on device); the "
+            f"last good step is {step - 10}: free space, then call minimize() again with the "
+            "same Checkpointing")
+        assert step >= 20 and _steps(ck)[-1] == step - 10
+        assert not list(ck.glob(f"{step}.orbax-checkpoint-tmp*"))
+        subprocess.run(["mount", "-o", "remount,size=32m", str(mnt)], check=True)
+        _same(_run(tmp_path / "ref", **kw), _run(ck, **kw))
+    finally:
+        subprocess.run(["umount", str(mnt)], check=False)

@@ -27,8 +27,11 @@ their digest; a step that does not is moved aside into ``<dir>/corrupt/`` (never
 a warning, and the next older one is tried (a corrupt history segment is moved aside with the
 steps that need it). History segments past the restored step (iterations the resumed run
 will compute again) are removed; segments no step refers to (an earlier run's, left in the
-folder: a fresh run, or a step that does not chain through them) are moved into ``<dir>/old/``. A lock file (``<dir>/.lock``, ``flock``) keeps a
-second process from writing the same folder. Mismatched runs and incompatible versions raise
+folder: a fresh run, or a step that does not chain through them) are moved into
+``<dir>/old/``. A lock file (``<dir>/.lock``, ``flock``) keeps a second process from writing
+the same folder. ``<dir>/run.json`` holds the caller's ``run_info`` as plain JSON (written at
+the first save), so ``eaco resume`` can name the command that starts the run again even when
+every step is corrupt. Mismatched runs and incompatible versions raise
 :class:`CheckpointError` (one line) before anything in the folder is written or moved.
 """
 
@@ -39,6 +42,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import re
 import shutil
 import sys
 import time
@@ -428,6 +432,7 @@ class RunCheckpointer:
         self._lock = _Lock(self.directory)
         self.log = HistoryLog(self.directory / "history", self.axis)
         self._chain = ""  # digest chain of the logged history, [0, _last_done)
+        self._run_info_written = False
 
     def _writer(self):
         if self._mgr is None:
@@ -532,9 +537,11 @@ class RunCheckpointer:
             if on_segment is not None:  # verified above: a second pass hands it over
                 self.log.read(restored.done, self._chain, visit=on_segment)
             return restored
+        command = self.run_info.get("command")
+        again = f"start again with: {command}" if command else "run again to start from scratch"
         raise CheckpointError(
             f"every checkpoint in {self.directory} was corrupt (moved to "
-            f"{self.directory / 'corrupt'}); run again to start from scratch")
+            f"{self.directory / 'corrupt'}); {again}")
 
     def history(self) -> dict[str, np.ndarray]:
         """The logged history: the iterations up to the last save or restore."""
@@ -564,16 +571,37 @@ class RunCheckpointer:
 
     def save(self, state: Any, done: int, pending: dict[str, Any], finished: bool) -> bool:
         """Append ``pending`` (iterations since the last save) to the history log, then write
-        the step. Returns False if the step exists already (nothing written)."""
-        import orbax.checkpoint as ocp
+        the step. Returns False if the step exists already (nothing written).
 
+        A write the disk refuses (full, quota, read-only) is one :class:`CheckpointError` line
+        naming the step and the last good one; the partial step is removed, the saved ones are
+        untouched."""
         self.open()
         mgr = self._writer()
         if done in mgr.all_steps():  # e.g. the final save of a run resumed at its last step
             return False
+        try:
+            with _quiet_logs():  # a refused write is one line, not orbax's logged tracebacks
+                self._write(mgr, state, done, pending, finished)
+        except Exception as err:  # noqa: BLE001 - orbax reports a failed write as ValueError
+            reason = _write_failure(err)
+            if reason is None:
+                raise
+            for partial in self.directory.glob(f"{done}.orbax-checkpoint-tmp*"):
+                shutil.rmtree(partial, ignore_errors=True)
+            raise CheckpointError(self._cannot_write(done, reason)) from None
+        return True
+
+    def _write(self, mgr: Any, state: Any, done: int, pending: dict[str, Any],
+               finished: bool) -> None:
+        import orbax.checkpoint as ocp
+
         history_chain = self._chain
         if done > self._last_done:
             history_chain = chain(history_chain, self.log.append(self._last_done, done, pending))
+        if not self._run_info_written and self.run_info:
+            write_run_info(self.directory, self.run_info)
+            self._run_info_written = True
         on_disk = _to_disk(state)
         meta = dict(self.identity)
         meta.update(
@@ -599,4 +627,55 @@ class RunCheckpointer:
         self._chain = history_chain
         self._last_done = done
         self._last_time = time.monotonic()
-        return True
+
+    def _cannot_write(self, done: int, reason: str) -> str:
+        """The one line for a step the disk refused: what to free and how to go on."""
+        head = f"could not write checkpoint step {done} in {self.directory} ({reason})"
+        command = self.run_info.get("command")
+        if self._last_done == 0:
+            again = f"start again with: {command}" if command else "start the run again"
+            return f"{head}; no step was saved yet: free space, then {again}"
+        how = (f"eaco resume {self.directory}" if self.run_info.get("kind")
+               else "call minimize() again with the same Checkpointing")
+        return f"{head}; the last good step is {self._last_done}: free space, then {how}"
+
+
+_OS_ERROR_CODE = re.compile(r"os_error_code='?(\d+)")
+
+
+def _write_failure(err: BaseException) -> str | None:
+    """The operating system's reason a write failed (``No space left on device``), or None
+    for anything else (a bug, which keeps its traceback). orbax/tensorstore report the OS
+    error inside a ValueError's text (``[os_error_code='28']``)."""
+    if isinstance(err, OSError):
+        return err.strerror or type(err).__name__
+    found = _OS_ERROR_CODE.search(str(err))
+    return os.strerror(int(found[1])) if found else None
+
+
+RUN_INFO = "run.json"
+
+
+def write_run_info(directory: Path, run_info: dict[str, Any]) -> None:
+    """``<dir>/run.json``: the run's ``run_info`` (kind, settings, command) as plain JSON,
+    beside the steps, so ``eaco resume`` can name the command even when every step is
+    corrupt. Written atomically (tmp file, fsync, rename)."""
+    target = directory / RUN_INFO
+    tmp = directory / f".tmp-{os.getpid()}-{RUN_INFO}"
+    try:
+        with open(tmp, "w") as f:
+            json.dump(_jsonable(run_info), f, sort_keys=True)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, target)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def read_run_info(directory: str | Path) -> dict[str, Any]:
+    """The ``run_info`` saved in ``<dir>/run.json`` ({} if absent or unreadable: data only)."""
+    try:
+        info = json.loads((Path(directory) / RUN_INFO).read_text())
+    except (OSError, ValueError):
+        return {}
+    return info if isinstance(info, dict) else {}

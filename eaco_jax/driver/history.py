@@ -80,18 +80,22 @@ class HistoryLog:
         return sorted(out)
 
     def append(self, start: int, end: int, rows: dict[str, np.ndarray]) -> str:
-        """Write iterations ``[start, end)`` atomically (tmp file, fsync, rename); returns the
-        segment's digest."""
+        """Write iterations ``[start, end)`` atomically (tmp file, fsync, rename; the tmp file
+        is removed if the write fails); returns the segment's digest."""
         self.directory.mkdir(parents=True, exist_ok=True)
         rows = {k: np.asarray(v) for k, v in rows.items()}
         digest = arrays_digest(rows)
         target = self.directory / f"{start:012d}-{end:012d}.npz"
         tmp = self.directory / f".tmp-{os.getpid()}-{start}-{end}.npz"
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, **rows, **{_DIGEST: np.frombuffer(digest.encode(), np.uint8)})
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
+        try:
+            with open(tmp, "wb") as f:
+                np.savez_compressed(f, **rows,
+                                    **{_DIGEST: np.frombuffer(digest.encode(), np.uint8)})
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(tmp, target)
+        finally:  # a failed write (a full disk) leaves no partial file behind
+            tmp.unlink(missing_ok=True)
         return digest
 
     def _load(self, path: Path) -> tuple[dict[str, np.ndarray], str]:

@@ -236,8 +236,32 @@ def checkpointing_for(kind: str, settings: Any, directory: str | Path | None,
         return None
     if every is not None and every < 1:
         raise ConfigError(f"--checkpoint-every must be >= 1, got {every}")
-    info = {"kind": kind, "settings": settings_dict(settings), "checkpoint_every": every}
+    info = {"kind": kind, "settings": settings_dict(settings), "checkpoint_every": every,
+            "command": command_line(kind, settings, directory, every)}
     return Checkpointing(directory, every=every, run_info=info)
+
+
+def command_line(kind: str, settings: Any, directory: str | Path | None = None,
+                 every: int | None = None) -> str:
+    """The ``eaco`` command that starts this run (the settings that differ from their
+    defaults, as the flags :mod:`eaco_jax.cli.runs` generates): printed when a checkpoint
+    folder cannot be resumed, so the run can be started again."""
+    import shlex
+
+    words, flags = ["eaco", kind], []
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        if f.metadata.get("positional"):
+            words.append(shlex.quote(str(value)))
+        elif value != f.default and value is not None:
+            flag = "--" + ("" if value is not False else "no-") + f.name.replace("_", "-")
+            flags += [flag] if isinstance(value, bool) else [flag, shlex.quote(str(value))]
+    if directory is not None:
+        flags += ["--checkpoint-dir", shlex.quote(str(Path(directory).absolute()))]
+    if every is not None:
+        flags += ["--checkpoint-every", str(every)]
+    return " ".join(words + flags)
+
 
 
 def check_out(out: str | None, files: tuple[str, ...] = ()) -> None:

@@ -33,13 +33,12 @@ def get(name: str) -> RunKind:
 
 def resume(directory: str | Path, *, progress: bool = False) -> dict[str, Any]:
     """Continue the checkpointed run in ``directory`` to its original budget; its record."""
-    from eaco_jax.driver.checkpoint import read_meta
     from eaco_jax.driver.minimize import Checkpointing
 
     directory = Path(directory)
     if not directory.is_dir():
         raise CheckpointError(f"checkpoint folder {directory} does not exist")
-    info = read_meta(directory).get("run_info") or {}
+    info = _stored_meta(directory).get("run_info") or {}
     name, values = info.get("kind"), info.get("settings")
     if not name or not isinstance(values, dict):
         raise CheckpointError(
@@ -58,3 +57,23 @@ def resume(directory: str | Path, *, progress: bool = False) -> dict[str, Any]:
     return kind.run(settings, progress=progress, checkpointing=checkpointing)
 
 
+def _stored_meta(directory: Path) -> dict[str, Any]:
+    """The newest readable checkpoint's metadata; where there is none (never saved, or every
+    step corrupt and moved aside), one line naming the command that starts the run again
+    (from ``run.json``)."""
+    from eaco_jax.driver.checkpoint import all_steps, read_meta, read_run_info
+
+    command = read_run_info(directory).get("command")
+    if command and not all_steps(directory):
+        corrupt = directory / "corrupt"
+        if corrupt.is_dir() and any(corrupt.iterdir()):
+            raise CheckpointError(f"every checkpoint in {directory} was corrupt (moved to "
+                                  f"{corrupt}); start again with: {command}")
+        raise CheckpointError(f"no checkpoint in {directory} (the run stopped before its "
+                              f"first save); start again with: {command}")
+    try:
+        return read_meta(directory)
+    except CheckpointError as err:
+        if command:
+            raise CheckpointError(f"{err}; it was started with: {command}") from None
+        raise
