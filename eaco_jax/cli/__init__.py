@@ -9,10 +9,60 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import sys
+from typing import Any
 
 import typer
+from typer.core import TyperGroup
+
+try:  # typer >= 0.2x carries its own copy of click
+    from typer._click import exceptions as click_errors
+except ImportError:  # an older typer parses with click itself
+    from click import exceptions as click_errors  # type: ignore[no-redef]
+
+
+class OneLineErrors(TyperGroup):
+    """The ``eaco`` group: a usage error of any command (unknown option, missing argument,
+    bad value) is one line ``error: ... (see 'eaco CMD --help')`` and exit code 2, as the
+    library's user errors are, instead of typer's boxed usage text."""
+
+    def main(self, args: Any = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: bool = True,
+             **extra: Any) -> Any:
+        try:
+            rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var,
+                              standalone_mode=False, **extra)
+        except click_errors.NoArgsIsHelpError as err:  # bare ``eaco``: the help
+            if not standalone_mode:
+                raise
+            typer.echo(err.ctx.get_help())
+            sys.exit(err.exit_code)
+        except click_errors.ClickException as err:
+            if not standalone_mode:
+                raise
+            typer.echo(f"error: {usage_line(err)}", err=True)
+            sys.exit(2)
+        except typer.Abort:
+            if not standalone_mode:
+                raise
+            typer.echo("aborted", err=True)
+            sys.exit(1)
+        if not standalone_mode:
+            return rv
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def usage_line(err: click_errors.ClickException) -> str:
+    """One line for a command-line usage error, naming the command's ``--help``."""
+    text = " ".join(err.format_message().split())
+    ctx = getattr(err, "ctx", None)
+    if ctx is None:
+        return text
+    return f"{text} (see '{ctx.command_path} --help')"
+
 
 app = typer.Typer(
+    cls=OneLineErrors,
     name="eaco",
     help="Enhanced elitist-mutated ant colony optimisation: TSP, constrained problems, gaits.",
     no_args_is_help=True,
@@ -89,7 +139,6 @@ for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
 def main() -> None:
     """The ``eaco`` entry point: the app, with a bare Ctrl-C answered by one line."""
     import os
-    import sys
 
     try:
         app()
