@@ -292,14 +292,33 @@ class Strategy:
         """Construct one colony of candidate solutions (shape ``(num_ants, ...)``)."""
         return self._ask(key, state, problem)
 
-    @_jit_method
     def tell(
         self, state: State, solutions: Array, fitness: PyTree, problem: Any
     ) -> tuple[State, dict[str, Array]]:
         """Update the colony with the evaluated ``solutions``; NaN costs count as +inf.
 
+        ``fitness`` is what the problem's ``evaluate`` returns: an ``(m,)`` array of costs for
+        graph and path strategies, an ``Evaluation(f, violation)`` for continuous ones.
         Returns the new state and this iteration's metrics (scalars).
         """
+        self.check_fitness(fitness)
+        return self._tell_jit(state, solutions, fitness, problem)
+
+    def check_fitness(self, fitness: PyTree) -> None:
+        """One ConfigError line, before anything is traced, for a continuous strategy told
+        plain costs: it ranks by objective and violation, so it needs an ``Evaluation``."""
+        from eaco_jax.problems.base import Evaluation
+
+        if self.problem_kind == "continuous" and not isinstance(fitness, Evaluation):
+            raise ConfigError(
+                f"{type(self).__name__}.tell needs fitness as ea.Evaluation(f, violation) (what "
+                f"a continuous problem's evaluate returns), got {type(fitness).__name__}; wrap "
+                "your costs f: ea.Evaluation(f=f, violation=jnp.zeros_like(f))")
+
+    @_jit_method
+    def _tell_jit(
+        self, state: State, solutions: Array, fitness: PyTree, problem: Any
+    ) -> tuple[State, dict[str, Array]]:
         fitness = jax.tree.map(lambda f: jnp.where(jnp.isnan(f), jnp.inf, f), fitness)
         state, metrics = self._tell(state, solutions, fitness, problem)
         cost = self.scalar_cost(fitness)
