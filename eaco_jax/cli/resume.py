@@ -24,11 +24,15 @@ def register(app: typer.Typer) -> None:
         quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
     ) -> None:
         """Continue an interrupted run from its newest checkpoint to its original budget."""
+        from eaco_jax.runs import checkpoint_kind
         from eaco_jax.runs import resume as resume_run
 
+        kind = checkpoint_kind(directory)
         record = resume_run(directory, progress=not (quiet or json_out))
         if json_out:
             emit_json(record)
+        elif not quiet and kind.summary is not None:  # as the run's own command prints it
+            typer.echo(kind.summary(record))
         elif not quiet:
             for key, value in record.items():
                 if not isinstance(value, list | dict):

@@ -22,6 +22,9 @@ from __future__ import annotations
 import copy
 import functools
 import os
+import re
+import sys
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -53,6 +56,38 @@ STATE_BYTES_PER_CALL = 256 * 2**20
 
 _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _PUSH_SPEC = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED
+
+
+class MujocoWarning(RuntimeWarning):
+    """A warning of MuJoCo's C engine (e.g. "the simulation is unstable")."""
+
+
+def mujoco_warning_kind(message: str) -> str:
+    """``message`` without what varies between repeats (the DOF, the simulation time), so
+    that Python's warning filter shows each kind once."""
+    text = re.sub(r"\s*Time = \S+", "", message)
+    return re.sub(r" at DOF \d+", "", text).strip()
+
+
+def _mujoco_warning(message: str) -> None:
+    # called by MuJoCo's C code, also from its rollout threads: must never raise (an
+    # exception here aborts the process), so a warning filter set to "error" prints instead
+    text = f"MuJoCo: {mujoco_warning_kind(message)}"
+    try:
+        warnings.warn(text, MujocoWarning, stacklevel=1)
+    except BaseException:  # noqa: BLE001
+        sys.stderr.write(f"warning: {text}\n")
+
+
+def route_mujoco_warnings() -> None:
+    """Send MuJoCo's warnings to Python's warnings (the terminal, once per kind) instead of
+    its default: a ``MUJOCO_LOG.TXT`` in the working directory and a line on stdout. Leaves
+    a handler the user has installed (``mujoco.set_mju_user_warning``) in place."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_mujoco_warning)
+
+
+route_mujoco_warnings()
 
 
 @functools.lru_cache(maxsize=16)

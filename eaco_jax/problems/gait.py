@@ -71,6 +71,11 @@ class GaitProblem:
     kind = "continuous"
     differentiable = False  # a simulation: no gradient repair / refinement steps
 
+    def shown_best(self, cost: float) -> float:
+        """The best cost as the user reads it (the progress bar): the fitness, ``-cost``
+        (the colony minimises ``-fitness``; a gait's fitness is maximised)."""
+        return -cost
+
     @property
     def stochastic(self) -> bool:
         """Whether ``evaluate`` takes a ``key`` (fresh randomised worlds each evaluation)."""

@@ -4,6 +4,7 @@ writes. The command line and the sweeps call them; ``get(name)`` finds one, ``re
 continues a checkpointed run."""
 
 from eaco_jax.runs.base import Built, RunKind, settings_dict
-from eaco_jax.runs.registry import get, kinds, register, resume
+from eaco_jax.runs.registry import checkpoint_kind, get, kinds, register, resume
 
-__all__ = ["Built", "RunKind", "get", "kinds", "register", "resume", "settings_dict"]
+__all__ = ["Built", "RunKind", "checkpoint_kind", "get", "kinds", "register", "resume",
+           "settings_dict"]

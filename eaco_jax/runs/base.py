@@ -155,14 +155,28 @@ def params_with(base: Any, overrides: dict[str, Any], where: str = "") -> Any:
     return base.replace(**changes)
 
 
-def warn_inactive(strategy: Any, params: Any, names: Any, where: str = "") -> None:
-    """Warn (one line each) about set Params fields that these switches leave unused."""
-    import warnings
-
+def refuse_inactive(strategy: Any, params: Any, names: Any, where: str = "") -> None:
+    """One ConfigError line for a set Params field that these switches leave unused (a
+    setting that would change nothing), naming the switch that makes it act, as a sweep
+    refuses sweeping it."""
     dead = strategy.inactive_params(params)
     for name in names:
         if name in dead:
-            warnings.warn(f"{where}{name} has no effect unless {dead[name]}", stacklevel=3)
+            raise ConfigError(f"{where}{name} has no effect unless {dead[name]} (set that "
+                              f"too, or drop {name})")
+
+
+def params_from(strategy: Any, problem: Any, text: str | None,
+                where: str = "--params: ") -> Any:
+    """The strategy's default Params for ``problem`` with the overrides ``text``
+    (``"q0=0.9,use_chaos=true"``, the ``params`` setting of every search command), checked:
+    unknown fields, values outside their ranges and fields the switches leave unused are one
+    ConfigError line each."""
+    overrides = parse_overrides(text)
+    params = params_with(strategy.default_params(problem), overrides, where)
+    strategy.check_params(params, where)
+    refuse_inactive(strategy, params, overrides, where)
+    return params
 
 
 @dataclasses.dataclass
@@ -261,7 +275,6 @@ def command_line(kind: str, settings: Any, directory: str | Path | None = None,
     if every is not None:
         flags += ["--checkpoint-every", str(every)]
     return " ".join(words + flags)
-
 
 
 def check_out(out: str | None, files: tuple[str, ...] = ()) -> None:

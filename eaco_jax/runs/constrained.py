@@ -21,10 +21,8 @@ from eaco_jax.runs.base import (
     check_out,
     check_settings,
     entered,
-    params_with,
-    parse_overrides,
+    params_from,
     setting,
-    warn_inactive,
 )
 from eaco_jax.runs.tsp import PARAMS_HELP
 
@@ -85,10 +83,7 @@ def build(s: ConstrainedSettings) -> Built:
         strategy = ContinuousEACO(num_ants=int(s.ants), archive_size=int(s.archive_size),
                                   constraint_method=s.method, repair_steps=int(s.repair_steps),
                                   refine_ants=int(s.refine_ants))
-        overrides = parse_overrides(s.params)
-        params = params_with(strategy.default_params(problem), overrides, "--params: ")
-        strategy.check_params(params, "--params: ")
-        warn_inactive(strategy, params, overrides, "--params: ")
+        params = params_from(strategy, problem, s.params)
     budget: dict[str, Any] = {"chunk_size": 50, **budget_of(s, s.iterations)}
     if problem.f_star is not None:
         budget["target"] = problem.f_star + TARGET_TOLERANCE
@@ -163,9 +158,15 @@ def write_outputs(folder: Path, record: dict[str, Any], history: dict[str, np.nd
 
 
 def summary(record: dict[str, Any]) -> str:
-    return "\n".join(f"{key}: {record[key]}" for key in (
-        "problem", "f", "f_star", "error", "violation", "feasible", "evaluations",
-        "evaluations_to_target"))
+    """The run in one line: f (against f* where known), feasibility, evaluations, time."""
+    error = record.get("error")
+    known = (f" (f* {record['f_star']:.10g}, error {error:.3g})" if error is not None else "")
+    feasible = ("feasible" if record["feasible"] else
+                f"infeasible (violation {record['violation']:.3g})")
+    target = record.get("evaluations_to_target")
+    reached = f", target reached after {target}" if target is not None else ""
+    return (f"{record['problem']}: f {record['f']:.10g}{known}, {feasible}, "
+            f"{record['evaluations']} evaluations{reached}, {record['seconds']:.1f} s")
 
 
 KIND = RunKind("constrained", ConstrainedSettings, build, run, row_metrics, summary)

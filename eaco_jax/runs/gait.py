@@ -35,7 +35,16 @@ import numpy as np
 
 from eaco_jax.errors import ProblemError
 from eaco_jax.gait.render import ensure_headless_gl
-from eaco_jax.runs.base import Built, RunKind, budget_of, check_out, check_settings, setting
+from eaco_jax.runs.base import (
+    Built,
+    RunKind,
+    budget_of,
+    check_out,
+    check_settings,
+    params_from,
+    setting,
+)
+from eaco_jax.runs.tsp import PARAMS_HELP
 
 ensure_headless_gl()  # before anything imports mujoco: its GL backend is fixed at import
 
@@ -77,6 +86,7 @@ class GaitSettings:
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
     max_seconds: float | None = setting(None, "stop after this many compute seconds")
+    params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting("out/gait", "folder for best_gait.json, history.csv, plots, video")
     video: bool | None = setting(None, "render best_gait.mp4 offscreen (default: only where a "
                                  "display or a GPU exists)")
@@ -298,7 +308,7 @@ def build(s: GaitSettings) -> Built:
     ants = int(s.ants)
     strategy = ContinuousEACO(num_ants=ants, archive_size=max(2, (3 * ants) // 2),
                               refine_ants=0, repair_steps=0)
-    return Built(search, strategy, strategy.default_params(search),
+    return Built(search, strategy, params_from(strategy, search, s.params),
                  budget_of(s, s.iterations), extra=extra)
 
 
@@ -315,7 +325,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     problem = built.extra["full_problem"]
     t0 = time.perf_counter()
     result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
-                      checkpointing=checkpointing, **built.budget)
+                      checkpointing=checkpointing, params=built.params, **built.budget)
     best = np.asarray(result.best_solution, np.float32)
     sim = problem.simulate(best, record=True)
     seconds = time.perf_counter() - t0
@@ -345,7 +355,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     if s.trials:
         from eaco_jax.gait.validate import evaluate_trials
 
-        record["trials"] = evaluate_trials(problem, best, n=int(s.trials))
+        record["trials"] = with_fall_interval(evaluate_trials(problem, best, n=int(s.trials)))
     if s.out is not None:
         from eaco_jax import plots
         from eaco_jax.outputs import write_history_csv, write_json
@@ -402,7 +412,8 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
     if s.trials:
         from eaco_jax.gait.validate import evaluate_trials
 
-        record["trials"] = evaluate_trials(problem, vec, n=int(s.trials), accurate=s.accurate)
+        record["trials"] = with_fall_interval(
+            evaluate_trials(problem, vec, n=int(s.trials), accurate=s.accurate))
     if s.export is not None:
         from eaco_jax.gait.validate import export_run
 
@@ -419,19 +430,53 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
     return record
 
 
+def falls_interval(falls: int, n: int) -> tuple[float, float]:
+    """Exact (Clopper-Pearson) 95% interval of the fall rate from ``falls`` of ``n`` trials."""
+    from scipy.stats import beta
+
+    lo = float(beta.ppf(0.025, falls, n - falls + 1)) if falls > 0 else 0.0
+    hi = float(beta.ppf(0.975, falls + 1, n - falls)) if falls < n else 1.0
+    return lo, hi
+
+
+def with_fall_interval(trials: dict[str, Any]) -> dict[str, Any]:
+    """The trials record with ``fall_rate_ci95``: the exact 95% interval of the fall rate."""
+    return {**trials, "fall_rate_ci95": list(falls_interval(int(trials["falls"]),
+                                                            int(trials["n"])))}
+
+
+def trials_line(trials: dict[str, Any]) -> str:
+    """``trials: N worlds, F falls (x%, 95% CI a-b%), speed m +/- c m/s`` of a trials record."""
+    n, falls = int(trials["n"]), int(trials["falls"])
+    lo, hi = falls_interval(falls, n)
+    return (f"trials: {n} worlds, {falls} fall{'' if falls == 1 else 's'} "
+            f"({100 * falls / n:.1f}%, 95% CI {100 * lo:.1f}-{100 * hi:.1f}%), speed "
+            f"{trials['speed_mps_mean']:.3f} +/- {trials['speed_mps_ci95']:.3f} m/s "
+            "(mean, 95% CI)")
+
+
 def summary(record: dict[str, Any]) -> str:
+    """The run in one line, then the trials (``--trials``) and the exported file
+    (``--export``) if there are any."""
     fell = f"fell at {record['fall_time']:.1f} s" if record["fell"] else "no fall"
     if record.get("turn"):
-        return (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s, turning "
+        line = (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s, turning "
                 f"{record['turn']}): {record['turn_deg_s']:.1f} deg/s, {fell}, "
                 f"fitness {record['fitness']:.1f} deg")
-    q = record.get("quality")
-    energy = (f", CoT {q['cost_of_transport']:.2f}, power {q['mean_power_w']:.0f} W mean / "
-              f"{q['peak_power_w']:.0f} W peak" if q else "")
-    return (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s): "
-            f"speed {record['speed_mps']:.3f} m/s, distance {record['distance_m']:.3f} m, "
-            f"{fell}, drift {record['drift_deg']:.1f} deg, fitness {record['fitness']:.3f}"
-            f"{energy}")
+    else:
+        q = record.get("quality")
+        energy = (f", CoT {q['cost_of_transport']:.2f}, power {q['mean_power_w']:.0f} W mean "
+                  f"/ {q['peak_power_w']:.0f} W peak" if q else "")
+        line = (f"{record['robot']} ({record['backend']}, {record['horizon']:g} s): "
+                f"speed {record['speed_mps']:.3f} m/s, distance {record['distance_m']:.3f} m, "
+                f"{fell}, drift {record['drift_deg']:.1f} deg, fitness "
+                f"{record['fitness']:.3f}{energy}")
+    lines = [line]
+    if record.get("trials"):
+        lines.append(trials_line(record["trials"]))
+    if record.get("export"):
+        lines.append(f"export: wrote {record['export']}")
+    return "\n".join(lines)
 
 
 KIND = RunKind("gait", GaitSettings, build, run, row_metrics, summary)

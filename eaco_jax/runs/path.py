@@ -18,10 +18,8 @@ from eaco_jax.runs.base import (
     check_out,
     check_settings,
     entered,
-    params_with,
-    parse_overrides,
+    params_from,
     setting,
-    warn_inactive,
 )
 from eaco_jax.runs.tsp import PARAMS_HELP
 
@@ -50,10 +48,7 @@ def build(s: PathSettings) -> Built:
     radius = (0.06, 0.12) if s.obstacles <= 12 else (0.03, 0.06)
     problem = random_environment(int(s.obstacles), seed=int(s.world_seed), radius=radius)
     strategy = PathEACO(num_ants=int(s.ants))
-    overrides = parse_overrides(s.params)
-    params = params_with(strategy.default_params(problem), overrides, "--params: ")
-    strategy.check_params(params, "--params: ")
-    warn_inactive(strategy, params, overrides, "--params: ")
+    params = params_from(strategy, problem, s.params)
     return Built(problem, strategy, params, budget_of(s, s.iterations))
 
 

@@ -31,11 +31,14 @@ def get(name: str) -> RunKind:
     return _KINDS[name]
 
 
-def resume(directory: str | Path, *, progress: bool = False) -> dict[str, Any]:
-    """Continue the checkpointed run in ``directory`` to its original budget; its record."""
-    from eaco_jax.driver.minimize import Checkpointing
+def checkpoint_kind(directory: str | Path) -> RunKind:
+    """The run kind whose command wrote the checkpoint in ``directory`` (its ``summary``
+    prints a resumed run as the command would have)."""
+    return _stored_run(Path(directory))[0]
 
-    directory = Path(directory)
+
+def _stored_run(directory: Path) -> tuple[RunKind, dict[str, Any]]:
+    """The run kind and the run info stored in a checkpoint; CheckpointError lines."""
     if not directory.is_dir():
         raise CheckpointError(f"checkpoint folder {directory} does not exist")
     info = _stored_meta(directory).get("run_info") or {}
@@ -51,6 +54,16 @@ def resume(directory: str | Path, *, progress: bool = False) -> dict[str, Any]:
         raise CheckpointError(
             f"checkpoint in {directory} was written by run kind {name!r}, which this "
             f"installation does not provide (known: {', '.join(sorted(kinds()))})") from None
+    return kind, info
+
+
+def resume(directory: str | Path, *, progress: bool = False) -> dict[str, Any]:
+    """Continue the checkpointed run in ``directory`` to its original budget; its record."""
+    from eaco_jax.driver.minimize import Checkpointing
+
+    directory = Path(directory)
+    kind, info = _stored_run(directory)
+    values = info["settings"]
     settings = kind.make_settings(values, where=f"checkpoint in {directory}: ")
     checkpointing = Checkpointing(directory, every=info.get("checkpoint_every"),
                                   run_info=info)

@@ -18,10 +18,8 @@ from eaco_jax.runs.base import (
     check_out,
     check_settings,
     entered,
-    params_with,
-    parse_overrides,
+    params_from,
     setting,
-    warn_inactive,
 )
 
 PARAMS_HELP = ("hyper-parameters and mechanism switches as KEY=VALUE,... (e.g. "
@@ -145,10 +143,7 @@ def build(s: TspSettings) -> Built:
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset)
-    overrides = parse_overrides(s.params)
-    params = params_with(strategy.default_params(problem), overrides, "--params: ")
-    strategy.check_params(params, "--params: ")
-    warn_inactive(strategy, params, overrides, "--params: ")
+    params = params_from(strategy, problem, s.params)
     return Built(problem, strategy, params, budget_of(s, s.iterations))
 
 
