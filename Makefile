@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-all lint bench clean docs docs-api
+.PHONY: demo test test-all lint bench clean docs docs-api claim claims-cpu check-claims
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,17 @@ test-all: $(STAMP)
 
 docs: $(STAMP)
 	$(BIN)/python docs/generate.py
+
+# the claims manifest (experiments/claims.toml): rerun one claim's command and compare its file
+# with the stated figure; rerun every CPU claim cheaper than CLAIMS_MAX_SECONDS; compare all
+CLAIMS_MAX_SECONDS ?= 300
+claim: $(STAMP)
+	@test -n "$(ID)" || (echo "usage: make claim ID=<claim id>  (python experiments/claims.py list)"; exit 2)
+	$(BIN)/python experiments/claims.py run $(ID)
+claims-cpu: $(STAMP)
+	$(BIN)/python experiments/claims.py cpu --max-seconds $(CLAIMS_MAX_SECONDS)
+check-claims: $(STAMP)
+	$(BIN)/python experiments/claims.py check
 
 # the API reference from the docstrings (pdoc) into docs/api/; any pdoc warning fails the target
 API_MODULES := eaco_jax eaco_jax.driver eaco_jax.ops eaco_jax.runs eaco_jax.sweep eaco_jax.cli \
