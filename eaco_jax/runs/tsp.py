@@ -84,47 +84,59 @@ class ColonyDefaults:
 SHORT_BUDGET_SECONDS = 5.0
 
 
+@dataclasses.dataclass(frozen=True)
+class ColonyRow:
+    """One row of :data:`COLONY_DEFAULTS`: the colony for ``min_n <= n < max_n`` cities on
+    ``backend`` ("cpu", or "gpu" for any accelerator), when the time budget is at most
+    ``max_seconds`` (None: any budget, or none)."""
+
+    backend: str
+    min_n: int
+    max_n: int | None
+    max_seconds: float | None
+    colony: ColonyDefaults
+    claim: str  # the id in experiments/claims.toml whose measurement chose this row
+
+
+#: the colonies ``eaco tsp`` resolves ``auto`` to; the first matching row wins. Each row names
+#: the claim (experiments/claims.toml, docs/results.md) that measured it; the size boundaries
+#: (700, 1,500 cities) lie between measured instances, not at measured crossings
+COLONY_DEFAULTS: tuple[ColonyRow, ...] = (
+    ColonyRow("cpu", 0, None, None, ColonyDefaults(50, "2opt+oropt", 25, "mmas"),
+              "tsp-cpu-pcb442-10s"),
+    ColonyRow("gpu", 700, 1500, SHORT_BUDGET_SECONDS,
+              ColonyDefaults(256, "or-2opt", None, "mmas", ls_neighbors=8),
+              "tsp-gpu-pr1002-3.7s-heldout"),
+    # Or-opt moves a segment of up to 3 cities: below 8 cities plain 2-opt
+    ColonyRow("gpu", 0, 8, None, ColonyDefaults(768, "2opt", None, "default", ls_neighbors=16),
+              "tsp-gpu-pcb442-3s-heldout"),
+    ColonyRow("gpu", 8, 700, None,
+              ColonyDefaults(768, "or-2opt", None, "default", ls_neighbors=16),
+              "tsp-gpu-pcb442-3s-heldout"),
+    ColonyRow("gpu", 700, 1500, None, ColonyDefaults(384, "or-2opt", None, "mmas"),
+              "tsp-gpu-pr1002-7.5s"),
+    ColonyRow("gpu", 1500, None, None, ColonyDefaults(96, "or-2opt", None, "mmas"),
+              "tsp-gpu-pr2392-30s-mmas"),
+)
+
+
 def colony_defaults(n: int, backend: str, seconds: float | None = None) -> ColonyDefaults:
     """The colony that ``--ants`` / ``--local-search`` / ``--ls-best-k`` / ``--preset`` /
     ``--ls-neighbors`` left out (``auto``) resolve to for ``n`` cities and a time budget of
-    ``seconds`` (None: no time budget).
+    ``seconds`` (None: no time budget): the first row of :data:`COLONY_DEFAULTS` that fits.
 
-    On a CPU: 50 ants, ACOTSP's don't-look-bit 2-opt + Or-opt (native code, see
-    ``eaco_jax/ops/local_search_native.py``) on the 25 shortest tours, MMAS as ACOTSP runs it
-    (preset "mmas": no crossover / mutation, tau_min = tau_max / 2n, restarts of converged
-    trails): the best of 20 settings on pcb442 at 10 s on one core, 3 seeds each
-    (``experiments/results/tsp_ls_choice_pcb442_cpu_native.json``), confirmed on 10 seeds
-    beside ACOTSP (``tsp_time_to_quality_cpu_{pcb442,a280}_native.json``).
-    On a GPU: or-2opt, with 768 ants below 700 cities (searching 16 candidates, below), 384
-    below 1,500 and 96 from there: the best colony sizes measured on one H100 in a time budget
-    (``experiments/results/gpu/tsp_time_to_quality_h100_*_or2opt*.json`` and
-    ``tsp_ttq_screen_h100_*``): pcb442 at 3 s, 1,024 of 768 / 1,024 / 1,536 ants on all 20
-    candidates (10 seeds);
-    pr1002 at 7.5 s, 384 of 256 / 384 / 512 / 1,024 (10 seeds); rat783 at 10 s, 384 of 192 /
-    384 / 768 (screen); pr2392 at 20 s, 96 of 96 / 128 / 192 / 384 / 768 (2-seed screen). The
-    bigger the tour, the longer each ant's local search, and the fewer ants fill a budget.
-    From 700 cities the "mmas" preset (10 seeds each, seeds 100-109, against "default":
-    rat783 at 10 s 0.084% against 0.164%, pr1002 at 7.5 s 0.126% against 0.225%, pr2392 at
-    30 s 0.228% against 0.445%; ``..._mmas.json``); below, "default" (pcb442 at 3 s: 0.081%,
-    "mmas" 0.133%, "mmas" with ERX / inversion 0.086%). The 700 and 1,500 boundaries lie
-    between measured sizes, not at measured crossings.
-    Below 700 cities since session 13: 768 ants whose search scans the 16 nearest candidates
-    (pcb442 at 3 s, seeds 100-109: 0.028% against 0.081% for 1,024 ants on all 20; 1,024 on
-    16 0.065%, on 12 0.112%, on 10 0.148%, 1,536 on 12 0.133%; ``..._pcb442_*_k*.json``),
-    confirmed from the call on the disjoint seeds 110-119 (0.034%).
-    A short budget (at most :data:`SHORT_BUDGET_SECONDS`) on 700-1,499 cities: 256 ants whose
-    search scans the 8 nearest candidates (pr1002, 10 seeds, ``..._k8*.json``): 0.108% at
-    3.7 s against 0.501% for 384 ants on all 20; 384 ants on all 20 ahead from 6 s (0.076%
-    against 0.100%); the two curves cross between 5 and 6 s.
+    On a CPU the native don't-look-bit search on the best tours with MMAS as ACOTSP runs it;
+    on a GPU the batched or-2opt with fewer ants the larger the tour (each ant's search costs
+    more), and a smaller colony scanning fewer candidates when a short budget on a mid-sized
+    tour favours fast early polishing.
     """
-    if backend == "cpu":
-        return ColonyDefaults(50, "2opt+oropt", 25, "mmas")
-    if 700 <= n < 1500 and seconds is not None and seconds <= SHORT_BUDGET_SECONDS:
-        return ColonyDefaults(256, "or-2opt", None, "mmas", ls_neighbors=8)
-    ants = 768 if n < 700 else 384 if n < 1500 else 96
-    return ColonyDefaults(ants, "or-2opt" if n >= 8 else "2opt", None,  # Or-opt: 8+ cities
-                          "default" if n < 700 else "mmas",
-                          ls_neighbors=16 if n < 700 else None)
+    kind = "cpu" if backend == "cpu" else "gpu"
+    for row in COLONY_DEFAULTS:
+        if row.backend == kind and row.min_n <= n and (row.max_n is None or n < row.max_n) \
+                and (row.max_seconds is None
+                     or (seconds is not None and seconds <= row.max_seconds)):
+            return row.colony
+    raise AssertionError(f"COLONY_DEFAULTS has no row for {n} cities on {backend}")
 
 
 def build(s: TspSettings) -> Built:

@@ -35,15 +35,14 @@ Defaults (differences from the paper's Table 4 and why):
     ``gb_every = 25`` iterations and the stagnation count use the best tour since the last
     restart (``use_restart_best``); a restart needs 250 iterations without improving it *and*
     converged trails (lambda-branching factor below ``restart_branching = 1.00001``); tau_min
-    assumes (k + 1) / 2 choices per step on k candidates (``branching``). Measured against the
-    earlier settings (beta 5, restart after 250 iterations without a new best-so-far,
-    n / 2 - 1 choices), this finds the eil51 optimum in 10 s where those stopped at 427.
+    assumes (k + 1) / 2 choices per step on k candidates (``branching``): ACOTSP's own
+    rules, which reach its quality in its time (claims ``tsp-no-ls-*``, docs/results.md).
   * beta = 2 (ACOTSP's default; Table 4's 5 converges to worse tours in our runs).
   * Q = 1 instead of 100: the same units (1/length) as Eq. 71, see :mod:`eaco_jax.ops.pheromone`.
   * q0 = 0 (Table 3's best q0 = 0.8 is for the constrained problem G1; it makes TSP colonies
     converge prematurely); local update, elitist reinforcement, the Eq. 3-4 condition, the
     adaptive weight, chaos and the evaporation schedule are implemented but off by default
-    (each measured in ``experiments/``); crossover/mutation are on with the paper's p_c = 0.6,
+    (the ablation claims in docs/results.md); crossover/mutation are on with the paper's p_c = 0.6,
     p_m = 0.5 under self-adaptive scaling when 2-opt is on, and off without it (``"auto"``).
 """
 
@@ -194,8 +193,8 @@ class GraphEACO(Strategy):
 
     num_ants: int = 40
     local_search: str = "2opt"
-    #: "auto": ERX / inversion with local search, "none" without (measured: without 2-opt
-    #: they cost 3x the time per iteration and lower the quality reached in a fixed time)
+    #: "auto": ERX / inversion with local search, "none" without (without 2-opt they cost
+    #: more time per iteration than they return in quality at a fixed time)
     crossover: str = "auto"
     mutation: str = "auto"
     #: cap on 2-opt improving moves per tour per iteration (None: run to a local optimum)
@@ -203,9 +202,8 @@ class GraphEACO(Strategy):
     #: local search on the ls_best_k shortest tours of each iteration only (None: all ants)
     ls_best_k: int | None = None
     #: "2opt" / "or-2opt": most disjoint improving moves one batched step applies per tour
-    #: (1 = classic best improvement; see ops/local_search.py). 64 from the ablation in
-    #: experiments/local_search_steps.py and tsp_time_to_quality.py (H100, 10 seeds): pr1002
-    #: at 7.5 s 0.063% against 0.117% with 32 and 0.143% with 128; pcb442 at 3 s equal
+    #: (1 = classic best improvement; see ops/local_search.py); 64 was best of 32 / 64 / 128
+    #: (claims tsp-gpu-pr1002-7.5s-mps64 and -mps32)
     ls_moves_per_step: int = 64
     #: candidates per city that the local search scans: the first ls_neighbors of the
     #: problem's nearest-neighbour lists (None: all of them)
@@ -214,7 +212,8 @@ class GraphEACO(Strategy):
     candidate_lists: bool = True
     #: how the tours are built ("auto", "lazy", "dense", "backup", "compact", "kernel"; see
     #: construction.construct_tours): a cost choice only, every plan builds the same tours;
-    #: "auto" is the Pallas "kernel" on a GPU (4-17x the others there), "lazy" on a CPU
+    #: "auto" is the Pallas "kernel" on a GPU (the fastest there, claim
+    #: tsp-gpu-kernel-pr1002-16384), "lazy" on a CPU
     construction_fallback: str = "auto"
     #: named parameter set of :meth:`default_params` (:data:`PRESETS`); "paper" also turns
     #: ERX crossover and inversion mutation on without local search ("auto")
