@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import shutil
 import tempfile
 import warnings
@@ -280,6 +281,57 @@ def main() -> None:
     record("sweep `seeds: 1048576`", "sweep", lambda: cli(
         "sweep", sweep_file("seeds.yaml", "command: tsp\nargs: {instance: burma14}\n"
                             "seeds: 1048576\n")))
+
+    # ------------------------------------------------------------ the compiled-program cache
+    from eaco_jax.driver import minimize as driver_mod
+    from eaco_jax.driver import program_cache
+
+    class Payload:
+        """Unpickling this creates ``path`` (what a hostile entry would run)."""
+
+        def __init__(self, path: Path) -> None:
+            self.path = str(path)
+
+        def __reduce__(self) -> tuple:
+            return (open, (self.path, "w"))
+
+    def tampered(how: str) -> str:
+        folder = TMP / "programs" / how
+        program_cache.set_folder(folder)
+        try:
+            driver_mod.clear_compiled()
+            clean = ea.minimize(eil51, g, seed=0, iterations=8, chunk_size=4)
+            init, chunk = sorted(folder.glob("*.jaxexport"), key=lambda p: p.stat().st_size)
+            marker = TMP / "programs" / "pwned"
+            if how == "pickle":
+                chunk.write_bytes(pickle.dumps(Payload(marker)))
+            elif how == "bit":
+                raw = bytearray(chunk.read_bytes())
+                raw[len(raw) - 1000] ^= 0x01
+                chunk.write_bytes(bytes(raw))
+            else:
+                a, b = init.read_bytes(), chunk.read_bytes()
+                init.write_bytes(b)
+                chunk.write_bytes(a)
+            driver_mod.clear_compiled()
+            again = ea.minimize(eil51, g, seed=0, iterations=8, chunk_size=4)
+            return (f"best_cost {float(again.best_cost):g} (clean {float(clean.best_cost):g})"
+                    + ("; payload ran" if marker.exists() else ""))
+        finally:
+            program_cache.set_folder(None)
+            driver_mod.clear_compiled()
+    record("program cache entry replaced by a pickle whose `__reduce__` creates a file", "file",
+           lambda: tampered("pickle"))
+    record("one flipped bit in a program cache entry", "file", lambda: tampered("bit"))
+    record("program cache entries of the initialiser and the chunk swapped by name", "file",
+           lambda: tampered("swap"))
+    cache_file = TMP / "cache_file"
+    cache_file.write_text("x")
+
+    def cache_is_file() -> str:
+        res = RUNNER.invoke(app, ["tsp", "--help"], env={"EACO_COMPILE_CACHE": str(cache_file)})
+        return f"exit {res.exit_code} (the command runs without the cache)"
+    record("`EACO_COMPILE_CACHE` naming a file", "CLI", cache_is_file)
 
     lines = [
         "# Bad inputs and faults, and what each gets now",
