@@ -35,9 +35,10 @@ def test_checkpointed_run_saves_and_says_how_to_resume(tmp_path, sig):
         proc.kill()
     assert proc.returncode == 130, err
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert f"interrupted ({sig.name})" in lines[0] and f"eaco resume {ck}" in lines[0]
-    step = int(lines[0].split("checkpoint saved at step ")[1].split()[0])
+    assert len(lines) == 2 and "Traceback" not in err, err
+    assert lines[0].startswith(f"{sig.name}: stopping after the current chunk (iteration ")
+    assert f"interrupted ({sig.name})" in lines[1] and f"eaco resume {ck}" in lines[1]
+    step = int(lines[1].split("checkpoint saved at step ")[1].split()[0])
     assert (ck / str(step)).is_dir() and not list(ck.glob("*orbax-checkpoint-tmp*"))
 
 
@@ -66,3 +67,29 @@ def test_out_pointing_at_a_file_is_refused_before_the_run(tmp_path):
                          capture_output=True, text=True, timeout=240)
     assert res.returncode == 2 and "is an existing file" in res.stderr
     assert Path(target).read_text() == "{}"
+
+
+def test_first_sigterm_during_a_long_chunk_says_so_at_once(tmp_path):
+    """The first SIGTERM in the middle of a chunk of seconds prints one line at once (not when
+    the chunk ends), then the run stops at the chunk's end with its checkpoint."""
+    ck = tmp_path / "ck"
+    cmd = [*CMD[:8], "--iterations", "4000000", *CMD[10:], "--checkpoint-dir", str(ck),
+           "--checkpoint-every", "40000"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(lambda: (ck / "40000").is_dir())
+        t0 = time.time()
+        proc.send_signal(signal.SIGTERM)
+        first = proc.stderr.readline()
+        said = time.time() - t0
+        rest = proc.communicate(timeout=120)[1]
+        ended = time.time() - t0
+    finally:
+        proc.kill()
+    assert proc.returncode == 130
+    step = int(first.split("(iteration ")[1].split(")")[0])
+    assert first == (f"SIGTERM: stopping after the current chunk (iteration {step}); send "
+                     "again to stop now\n")
+    assert step > 40000 and (ck / str(step)).is_dir()
+    assert rest.strip().startswith(f"interrupted (SIGTERM) after {step} of 4000000")
+    assert said < 1.0 and said < ended / 2, (said, ended)  # at once; the chunk ran on

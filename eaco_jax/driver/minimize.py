@@ -312,16 +312,22 @@ def _polled(fn: Callable[[], Any], interrupted: Callable[[], bool] | None) -> An
 
 
 class _Signals:
-    """SIGINT / SIGTERM set a flag (the driver stops at the next chunk boundary); a second
-    signal exits at once. Installed only in the main thread."""
+    """SIGINT / SIGTERM set a flag (the driver stops at the next chunk boundary) and say so at
+    once, naming the iteration the current chunk ends at (``at``); a second signal exits at
+    once. Installed only in the main thread."""
 
-    def __init__(self) -> None:
+    def __init__(self, newline: bool = False) -> None:
         self.name: str | None = None
+        self.at = 0
+        self._newline = newline  # a progress bar holds the current line
         self._old: dict[int, Any] = {}
+        self._err: int | None = None  # stderr as it was (a save may point fd 2 elsewhere)
 
     def __enter__(self) -> _Signals:
         if threading.current_thread() is not threading.main_thread():
             return self
+        sys.stderr.flush()
+        self._err = os.dup(2)
         for sig in (signal.SIGINT, signal.SIGTERM):
             try:
                 self._old[sig] = signal.signal(sig, self._handle)
@@ -331,14 +337,22 @@ class _Signals:
 
     def _handle(self, signum: int, frame: Any) -> None:
         if self.name is not None:  # second signal: stop now
-            sys.stderr.write("\ninterrupted again: exiting without saving\n")
-            sys.stderr.flush()
+            self._say("\ninterrupted again: exiting without saving\n")
             os._exit(130)
         self.name = signal.Signals(signum).name
+        self._say(f"{chr(10) if self._newline else ''}{self.name}: stopping after the current "
+                  f"chunk (iteration {self.at}); send again to stop now\n")
+
+    def _say(self, text: str) -> None:
+        sys.stderr.flush()
+        os.write(self._err if self._err is not None else 2, text.encode())
 
     def __exit__(self, *exc: Any) -> None:
         for sig, old in self._old.items():
             signal.signal(sig, old)
+        if self._err is not None:
+            os.close(self._err)
+            self._err = None
 
     def __call__(self) -> bool:
         return self.name is not None
@@ -767,7 +781,7 @@ def run(
         from tqdm.auto import tqdm
 
         bar = tqdm(total=total, initial=done, desc=getattr(problem, "name", "eaco"), unit="it")
-    signals = _Signals()
+    signals = _Signals(newline=bar is not None)
     try:
         with signals:
             while done < total:
@@ -777,6 +791,7 @@ def run(
                 length = min(chunk, total - done)
                 if every:  # saves land on multiples of checkpoint_every
                     length = min(length, every - done % every)
+                signals.at = done
                 try:
                     compiled, seconds = compiled_chunk(strategy, chunk, batched, problem, state,
                                                        capped, interrupted=signals)
@@ -789,6 +804,7 @@ def run(
                     break
                 t0 = time.perf_counter()
                 args = (problem, state, jnp.int32(length)) + ((budget,) if capped else ())
+                signals.at = done + length
                 state, hist = compiled(*args)
                 jax.block_until_ready(state)
                 run_seconds += time.perf_counter() - t0
