@@ -333,6 +333,8 @@ def main() -> None:
         return f"exit {res.exit_code} (the command runs without the cache)"
     record("`EACO_COMPILE_CACHE` naming a file", "CLI", cache_is_file)
 
+    checkpoint_folder_rows(burma, g)
+
     lines = [
         "# Bad inputs and faults, and what each gets now",
         "",
@@ -352,6 +354,9 @@ def main() -> None:
         "resume D |",
         "| Ctrl-C without checkpointing | CLI | exit 130: interrupted (SIGINT) after N of M "
         "iterations; best so far: L (no checkpoint: pass --checkpoint-dir to resume) |",
+        "| the first SIGTERM (or Ctrl-C) during a long chunk | CLI | at once: SIGTERM: stopping "
+        "after the current chunk (iteration X); send again to stop now; at the chunk's end: "
+        "exit 130: interrupted (SIGTERM) after X of M iterations; checkpoint saved ... |",
         "| a second `eaco tsp --checkpoint-dir D` while the first runs | CLI | exit 2: error: "
         "checkpoint folder D is in use by another run (pid P since T); wait for it to finish or "
         "use another --checkpoint-dir |",
@@ -360,6 +365,61 @@ def main() -> None:
     out = Path(__file__).resolve().parent.parent / "docs" / "bad_inputs.md"
     out.write_text("\n".join(lines))
     print(f"{len(ROWS) + 4} rows -> {out}")
+
+
+
+def checkpoint_folder_rows(burma: object, g: object) -> None:
+    """History log, checkpoint folders and full disks (issue 28)."""
+    import errno
+
+    def run_in(folder: Path, iterations: int, every: int) -> object:
+        return ea.minimize(burma, g, seed=0, iterations=iterations, chunk_size=5,
+                           checkpointing=ea.Checkpointing(folder, every=every))
+
+    older = TMP / "older"
+
+    def fresh_over_older() -> str:
+        run_in(older, 30, 10)
+        for step in ("10", "20", "30"):
+            shutil.rmtree(older / step)
+        return f"iterations={run_in(older, 25, 5).iterations}"
+    record("fresh run (every 5, 25 its) in a folder holding an older run's history segments "
+           "(every 10, 30 its; its steps gone)", "API", fresh_over_older)
+
+    corrupt = TMP / "allcorrupt"
+
+    def resume_all_corrupt() -> str:
+        cli("tsp", "burma14", "--ants", "4", "--iterations", "10", "--local-search", "none",
+            "--quiet", "--checkpoint-dir", str(corrupt), "--checkpoint-every", "5")
+        for step in (p for p in corrupt.iterdir() if p.name.isdigit()):
+            for f in (p for p in (step / "state" / "d").iterdir() if p.is_file()):
+                data = bytearray(f.read_bytes())
+                data[len(data) // 2] ^= 1
+                f.write_bytes(bytes(data))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cli("resume", str(corrupt))  # moves every step into corrupt/
+        return cli("resume", str(corrupt))
+    record("`eaco resume D` again after every checkpoint in D was corrupt", "CLI",
+           resume_all_corrupt)
+
+    full = TMP / "full"
+
+    def disk_full() -> object:
+        real = os.fsync
+
+        def fsync(fd: int) -> None:  # the disk refuses the history segment of step 20
+            if "/history/.tmp-" in os.readlink(f"/proc/self/fd/{fd}") and \
+                    "-10-20." in os.readlink(f"/proc/self/fd/{fd}"):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            real(fd)
+        os.fsync = fsync
+        try:
+            return run_in(full, 20, 10)
+        finally:
+            os.fsync = real
+    record("disk full during a save (ENOSPC injected at the history segment's fsync; a real "
+           "full tmpfs in tests/test_checkpoint.py)", "API", disk_full)
 
 
 if __name__ == "__main__":
