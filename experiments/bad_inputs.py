@@ -335,6 +335,8 @@ def main() -> None:
 
     checkpoint_folder_rows(burma, g)
 
+    first_hour_rows()
+
     lines = [
         "# Bad inputs and faults, and what each gets now",
         "",
@@ -366,6 +368,37 @@ def main() -> None:
     out.write_text("\n".join(lines))
     print(f"{len(ROWS) + 4} rows -> {out}")
 
+
+
+def first_hour_rows() -> None:
+    """The first hour of a new user: the command line's usage errors, --params on every
+    search command, tell on a continuous strategy (issue 28)."""
+    import jax
+
+    from eaco_jax.problems import functions
+    from eaco_jax.strategies import ContinuousEACO
+
+    record("`eaco gait --params q0=0.5` (4 ants, 1 iteration, 0.5 s)", "CLI", lambda: cli(
+        "gait", "--backend", "native", "--ants", "4", "--iterations", "1", "--horizon", "0.5",
+        "--no-video", "--params", "q0=0.5", "--out", str(TMP / "gait_q0")))
+    record("`eaco gait --params p_repair=0.5` (gait has no gradient repair)", "CLI",
+           lambda: cli("gait", "--params", "p_repair=0.5"))
+    record("`eaco constrained g06 --repair-steps 0 --params p_repair=0.3`", "CLI",
+           lambda: cli("constrained", "g06", "--repair-steps", "0", "--params", "p_repair=0.3"))
+    record("`eaco tsp burma14 --bogus 1` (an option no command has)", "CLI",
+           lambda: cli("tsp", "burma14", "--bogus", "1"))
+    record("`eaco resume` (no folder)", "CLI", lambda: cli("resume"))
+    record("`eaco tsp burma14 --ants many`", "CLI", lambda: cli("tsp", "burma14", "--ants",
+                                                                 "many"))
+
+    def tell_plain_costs() -> object:
+        problem = functions.sphere()
+        strategy = ContinuousEACO(num_ants=4, archive_size=6, refine_ants=0, repair_steps=0)
+        state = strategy.init(jax.random.key(0), problem)
+        x, state = strategy.ask(jax.random.key(1), state, problem)
+        return strategy.tell(state, x, np.sum(np.asarray(x) ** 2, axis=1), problem)
+    record("`ContinuousEACO.tell(state, x, numpy_costs, problem)` (no ea.Evaluation)", "API",
+           tell_plain_costs)
 
 
 def checkpoint_folder_rows(burma: object, g: object) -> None:
