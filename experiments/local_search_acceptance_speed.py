@@ -1,13 +1,12 @@
 """Batched 2-opt / Or-opt: the greedy acceptance of a step's moves, one by one or in rounds.
 
-Each step of ``two_opt`` (``local_search="2opt" | "or-2opt"``) takes the best ``moves_per_step``
-moves of a tour and accepts, greedily by gain, those disjoint from the better accepted ones.
-Until session 12 this was a ``fori_loop`` of one decision per move (32 dependent steps, each a
-few kernels on a GPU, inside every step of the search); now it runs in parallel rounds
-(``_greedy_disjoint``) with the same result. This script times whole colony iterations
-(``GraphEACO`` with local search, through ``minimize``) with each acceptance, checks that both
-reach the same best length after the same iterations (same moves, same tours), and writes a
-table and JSON. The sequential version lives only here, as the reference being replaced.
+Each step of ``ops.local_search.two_opt`` takes the best ``moves_per_step`` moves of a tour and
+accepts, greedily by gain, those disjoint from the better accepted ones: in parallel rounds
+(``acceptance="rounds"``, the default) or one decision per move (``"sequential"``, a
+``fori_loop`` of dependent steps, each a few kernels on a GPU). This script polishes one
+colony's first-iteration tours (``GraphEACO``'s construction from uniform pheromone, alpha 1,
+beta 2, on the candidate lists) with each acceptance, prints the ms per ``two_opt`` call
+(median after compilation) and checks that both return the same tours, and writes a JSON.
 
     python experiments/local_search_acceptance_speed.py --cases pcb442:1024 pr1002:384
 """
@@ -15,6 +14,7 @@ table and JSON. The sequential version lives only here, as the reference being r
 from __future__ import annotations
 
 import argparse
+import statistics
 import time
 from pathlib import Path
 
@@ -23,79 +23,73 @@ from common import find_instance, write_results
 RESULTS = Path(__file__).resolve().parent / "results" / "local_search_acceptance_speed.json"
 
 
-def sequential_greedy(valid, overlap, budget):
-    """The acceptance before session 12: one decision per move, in order."""
+def time_search(problem, tours, or_opt: bool, per_step: int, acceptance: str,
+                repeats: int) -> tuple[dict, object]:
+    """ms per ``two_opt`` call on ``tours`` (median of ``repeats`` after compilation)."""
     import jax
     import jax.numpy as jnp
 
-    def accept(t, acc):
-        ok = valid[t] & ~jnp.any(acc & overlap[t]) & (acc.sum() < budget)
-        return acc.at[t].set(ok)
+    from eaco_jax.ops.local_search import two_opt
 
-    return jax.lax.fori_loop(0, valid.shape[0], accept, jnp.zeros_like(valid))
+    dist = jnp.asarray(problem.dist, jnp.float32)
 
+    def run():
+        return two_opt(tours, dist, problem.neighbors, moves_per_step=per_step, or_opt=or_opt,
+                       acceptance=acceptance)
 
-def time_colony(problem, ants: int, local_search: str, iterations: int, seed: int) -> dict:
-    """ms per colony iteration (after compilation) and the best length after ``iterations``."""
-    import jax
-    import numpy as np
-
-    from eaco_jax import minimize
-    from eaco_jax.driver import minimize as driver
-    from eaco_jax.driver import program_cache
-    from eaco_jax.strategies.graph_eaco import GraphEACO
-
-    driver.clear_compiled()  # each variant traces and compiles its own chunk
-    program_cache.set_folder(None)  # a loaded program would not see the patched acceptance
-    jax.clear_caches()
-    strategy = GraphEACO(num_ants=ants, local_search=local_search)
     t0 = time.perf_counter()
-    res = minimize(problem, strategy, seed=seed, iterations=iterations, chunk_size=5)
-    wall = time.perf_counter() - t0
-    run = res.seconds - res.compile_seconds
-    return {"ms_per_iteration": 1000 * run / iterations, "compile_seconds": res.compile_seconds,
-            "wall_seconds": wall, "best": float(np.min(np.asarray(res.best_cost)))}
+    out = jax.block_until_ready(run())
+    compile_s = time.perf_counter() - t0
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(run())
+        times.append(time.perf_counter() - t0)
+    return {"ms_per_call": 1000 * statistics.median(times), "compile_seconds": compile_s}, out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=["pcb442:1024", "pr1002:384"],
                     help="INSTANCE:ANTS")
-    ap.add_argument("--local-search", default="or-2opt")
-    ap.add_argument("--iterations", type=int, default=40)
+    ap.add_argument("--local-search", choices=["2opt", "or-2opt"], default="or-2opt")
+    ap.add_argument("--moves-per-step", type=int, default=64,
+                    help="moves per step (GraphEACO.ls_moves_per_step's default)")
+    ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--data-dir", type=Path, action="append")
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
 
-    from eaco_jax.ops import local_search
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
 
-    rounds = local_search._greedy_disjoint
+    from eaco_jax.strategies.tour_base import build
+
     rows = []
-    print(f"{'instance':>8} {'ants':>6} {'acceptance':>10} {'ms/it':>8} {'compile s':>9} "
-          f"{'best':>10}")
+    print(f"{'instance':>8} {'ants':>6} {'acceptance':>10} {'ms/call':>8} {'compile s':>9}")
     for case in args.cases:
         name, ants = case.split(":")
         problem = find_instance(name, args.data_dir)
+        n = problem.dist.shape[0]
+        tours = build(jax.random.key(args.seed), jnp.ones((n, n), jnp.float32), problem,
+                      int(ants), jnp.float32(1.0), jnp.float32(2.0))
         got = {}
-        for variant, fn in (("sequential", sequential_greedy), ("rounds", rounds)):
-            local_search._greedy_disjoint = fn
-            try:
-                r = time_colony(problem, int(ants), args.local_search, args.iterations,
-                                args.seed)
-            finally:
-                local_search._greedy_disjoint = rounds
-            got[variant] = r
-            rows.append({"instance": name, "ants": int(ants), "acceptance": variant,
-                         "local_search": args.local_search, "iterations": args.iterations,
-                         **r})
-            print(f"{name:>8} {ants:>6} {variant:>10} {r['ms_per_iteration']:8.2f} "
-                  f"{r['compile_seconds']:9.1f} {r['best']:10.0f}", flush=True)
-        rows[-1]["same_best_as_sequential"] = got["rounds"]["best"] == got["sequential"]["best"]
-        rows[-1]["speedup"] = (got["sequential"]["ms_per_iteration"]
-                               / got["rounds"]["ms_per_iteration"])
-        print(f"{'':>8} speed-up {rows[-1]['speedup']:.2f}x, same best: "
-              f"{rows[-1]['same_best_as_sequential']}")
+        for acceptance in ("sequential", "rounds"):
+            r, out = time_search(problem, tours, args.local_search == "or-2opt",
+                                 args.moves_per_step, acceptance, args.repeats)
+            got[acceptance] = (r, np.asarray(out))
+            rows.append({"instance": name, "ants": int(ants), "acceptance": acceptance,
+                         "local_search": args.local_search,
+                         "moves_per_step": args.moves_per_step, **r})
+            print(f"{name:>8} {ants:>6} {acceptance:>10} {r['ms_per_call']:8.2f} "
+                  f"{r['compile_seconds']:9.1f}", flush=True)
+        (seq, seq_tours), (rnd, rnd_tours) = got["sequential"], got["rounds"]
+        rows[-1]["same_tours_as_sequential"] = bool(np.array_equal(seq_tours, rnd_tours))
+        rows[-1]["speedup"] = seq["ms_per_call"] / rnd["ms_per_call"]
+        print(f"{'':>8} speed-up {rows[-1]['speedup']:.2f}x, same tours: "
+              f"{rows[-1]['same_tours_as_sequential']}")
     write_results(args.out, rows)
     print(f"wrote {args.out}")
 

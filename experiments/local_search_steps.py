@@ -34,22 +34,23 @@ def profile(problem, ants: int, per_step: int, cap: int | None, or_opt: bool,
     import jax.numpy as jnp
     import numpy as np
 
-    from eaco_jax.ops import local_search as ls
     from eaco_jax.ops.construction import tour_lengths
+    from eaco_jax.ops.local_search import two_opt
     from eaco_jax.strategies.tour_base import build
 
     dist = jnp.asarray(problem.dist, jnp.float32)
     n = dist.shape[0]
     tours = build(jax.random.key(seed), jnp.ones((n, n), jnp.float32), problem, ants,
                   jnp.float32(1.0), jnp.float32(2.0))
-    cand = ls._candidates(dist, problem.neighbors)[:, :neighbors]
-    cand_d = dist[jnp.arange(n)[:, None], cand]
-    mm = ls._default_max_moves(n, cap)
+    lists = problem.neighbors
+    if neighbors is not None:
+        if lists is None:
+            raise SystemExit(f"{problem.name} has no candidate lists to take {neighbors} of")
+        lists = lists[:, :neighbors]
 
-    @jax.jit
     def run(t):
-        return jax.vmap(lambda x: ls._two_opt_one(x, dist, cand, cand_d, mm, per_step,
-                                                  or_opt))(t)
+        return two_opt(t, dist, lists, cap, moves_per_step=per_step, or_opt=or_opt,
+                       return_steps=True)
 
     t0 = time.perf_counter()
     out, moves, steps = jax.block_until_ready(run(tours))

@@ -38,6 +38,8 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
+from eaco_jax.errors import ConfigError
+
 Array = jax.Array
 
 #: Or-opt moves segments of 1..OR_OPT_MAX cities
@@ -104,6 +106,22 @@ def _greedy_disjoint(valid: Array, overlap: Array, budget: Array) -> Array:
     return acc & (jnp.cumsum(acc) <= budget)
 
 
+def _greedy_sequential(valid: Array, overlap: Array, budget: Array) -> Array:
+    """The same greedy acceptance as :func:`_greedy_disjoint`, one decision per entry in index
+    order (``len(valid)`` dependent steps): the reference that the rounds reproduce."""
+
+    def accept(t, acc):
+        ok = valid[t] & ~jnp.any(acc & overlap[t]) & (acc.sum() < budget)
+        return acc.at[t].set(ok)
+
+    return jax.lax.fori_loop(0, valid.shape[0], accept, jnp.zeros_like(valid))
+
+
+#: how a step of :func:`two_opt` accepts its disjoint moves (the same moves either way):
+#: "rounds" in parallel rounds (:func:`_greedy_disjoint`), "sequential" one by one
+ACCEPTANCES = ("rounds", "sequential")
+
+
 def _apply_disjoint(
     tour: Array,
     pos: Array,
@@ -115,6 +133,7 @@ def _apply_disjoint(
     kind: Array | None = None,
     span: Array | None = None,
     rev: Array | None = None,
+    acceptance: str = "rounds",
 ) -> tuple[Array, Array, Array]:
     """Apply several improving moves at once, greedily by gain, if they touch disjoint edges.
 
@@ -125,7 +144,8 @@ def _apply_disjoint(
     positions at its front to its end / at its end to its front, reversed where ``rev``
     (Or-opt). Of the ``top`` best, a move is accepted when its edge range is disjoint from
     every better accepted one; such moves commute and their gains add up, so all of them are
-    applied in one O(n) pass. Returns (tour, pos, applied).
+    applied in one O(n) pass (``acceptance``: see :data:`ACCEPTANCES`). Returns (tour, pos,
+    applied).
     """
     n = tour.shape[0]
     top = min(top, gain.shape[0])
@@ -136,7 +156,8 @@ def _apply_disjoint(
     overlap = overlap | ((tl[:, None] == 0) & (th[None, :] == n - 1))
     overlap = overlap | ((tl[None, :] == 0) & (th[:, None] == n - 1))
 
-    acc = _greedy_disjoint(top_g > 0, overlap, budget)
+    greedy = _greedy_sequential if acceptance == "sequential" else _greedy_disjoint
+    acc = greedy(top_g > 0, overlap, budget)
     one = acc.astype(jnp.int32)
     idx = jnp.arange(n, dtype=jnp.int32)
     if kind is None:  # reversals only: the piecewise reflection p -> lo + hi - p
@@ -232,6 +253,7 @@ def _two_opt_one(
     max_moves: int,
     per_step: int,
     or_opt: bool = False,
+    acceptance: str = "rounds",
 ) -> tuple[Array, Array, Array]:
     """2-opt (and Or-opt) of one tour with candidate lists (see module docstring):
     (tour, moves, steps)."""
@@ -275,10 +297,10 @@ def _two_opt_one(
                 max_moves - moves,
                 kind=jnp.concatenate([jnp.full(n, REVERSE, jnp.int32), okind]),
                 span=jnp.concatenate([jnp.zeros(n, jnp.int32), ospan]),
-                rev=jnp.concatenate([jnp.zeros(n, bool), orev]))
+                rev=jnp.concatenate([jnp.zeros(n, bool), orev]), acceptance=acceptance)
         else:
             tour, pos, applied = _apply_disjoint(tour, pos, gain, lo, hi, per_step,
-                                                 max_moves - moves)
+                                                 max_moves - moves, acceptance=acceptance)
         return tour, pos, moves + applied, steps + 1, applied == 0
 
     def cond(carry):
@@ -292,7 +314,8 @@ def _two_opt_one(
     return tour, moves, steps
 
 
-@partial(jax.jit, static_argnames=("max_moves", "return_moves", "moves_per_step", "or_opt"))
+@partial(jax.jit, static_argnames=("max_moves", "return_moves", "moves_per_step", "or_opt",
+                                   "return_steps", "acceptance"))
 def two_opt(
     tours: Array,
     dist: Array,
@@ -301,7 +324,9 @@ def two_opt(
     return_moves: bool = False,
     moves_per_step: int = 32,
     or_opt: bool = False,
-) -> Array | tuple[Array, Array]:
+    return_steps: bool = False,
+    acceptance: str = "rounds",
+) -> Array | tuple[Array, Array] | tuple[Array, Array, Array]:
     """2-opt (and Or-opt) local search of every tour in ``tours`` ``(m, n)`` to a local optimum.
 
     Args:
@@ -313,17 +338,27 @@ def two_opt(
       moves_per_step: most moves applied per step (1 = best improvement; see module doc).
       or_opt: also Or-opt moves (segments of 1..3 cities moved next to a candidate; see
         :func:`_or_opt_moves`), competing with the 2-opt moves in every step.
+      return_steps: return ``(tours, moves, steps)``: also the improvement steps each tour's
+        loop ran ``(m,)`` int32 (the vmapped loop runs as many as the largest; this is what a
+        benchmark of ``moves_per_step`` counts).
+      acceptance: how a step accepts its disjoint moves, :data:`ACCEPTANCES` (the same tours
+        either way; "sequential" is the one-by-one reference, kept to time against).
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
+    if acceptance not in ACCEPTANCES:
+        raise ConfigError(f"acceptance={acceptance!r} is not one of {ACCEPTANCES}")
     tours = jnp.asarray(tours, jnp.int32)
     dist = jnp.asarray(dist, jnp.float32)
     _check(tours, dist, neighbors, or_opt)
     cand = _candidates(dist, neighbors)
     cand_d = dist[jnp.arange(dist.shape[0])[:, None], cand]
     mm = _default_max_moves(tours.shape[1], max_moves)
-    out, moves, _ = jax.vmap(
-        lambda t: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt))(tours)
+    out, moves, steps = jax.vmap(
+        lambda t: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,
+                               acceptance))(tours)
+    if return_steps:
+        return out, moves, steps
     return (out, moves) if return_moves else out
 
 
