@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -93,3 +94,34 @@ def test_first_sigterm_during_a_long_chunk_says_so_at_once(tmp_path):
     assert step > 40000 and (ck / str(step)).is_dir()
     assert rest.strip().startswith(f"interrupted (SIGTERM) after {step} of 4000000")
     assert said < 1.0 and said < ended / 2, (said, ended)  # at once; the chunk ran on
+
+
+_INTERRUPT_AT_IMPORT = """
+import os, signal, sys
+sys.argv = ["eaco", "--version"]
+
+
+class InterruptAt:  # Ctrl-C exactly when `{module}` starts importing
+    def find_spec(self, name, path=None, target=None):
+        if name == "{module}":
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+
+sys.meta_path.insert(0, InterruptAt())
+from eaco_jax.cli import main
+main()
+"""
+
+
+@pytest.mark.parametrize("module", ["jax", "typer"])
+def test_ctrl_c_while_the_command_imports_is_one_line(module):
+    """Ctrl-C while `eaco` still imports (jax inside the package, typer inside the CLI): the
+    line 'interrupted' and exit 130, no KeyboardInterrupt traceback."""
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    proc = subprocess.run([sys.executable, "-c", _INTERRUPT_AT_IMPORT.format(module=module)],
+                          capture_output=True, text=True, timeout=120, env=env)
+    assert proc.returncode == 130, proc.stderr[-2000:]
+    assert proc.stderr.strip() == "interrupted", proc.stderr[-2000:]
+    assert proc.stdout == ""

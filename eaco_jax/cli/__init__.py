@@ -139,7 +139,10 @@ for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
 def main() -> None:
     """The ``eaco`` entry point: the app, with a bare Ctrl-C answered by one line."""
     import os
+    import signal
 
+    if getattr(signal.getsignal(signal.SIGINT), "__name__", "") == "_interrupted_while_starting":
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # started: Ctrl-C as usual
     try:
         app()
     except KeyboardInterrupt:
