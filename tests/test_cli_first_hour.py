@@ -58,13 +58,42 @@ def test_continuous_tell_with_plain_costs_names_evaluation():
 @pytest.mark.parametrize("command", [
     ["tsp", "burma14", "--local-search", "none", "--params", "rho=0.1"],
     ["constrained", "g06", "--repair-steps", "0", "--params", "p_repair=0.3"],
-    ["gait", "--params", "p_repair=0.5"],
 ])
 def test_params_without_effect_are_refused_by_single_runs(command, tmp_path):
     """A --params field the switches leave unused is refused, as a sweep refuses sweeping it."""
     name = command[-1].split("=")[0]
     err = one_line_error([*command, "--iterations", "1", "--out", str(tmp_path)])
     assert f"--params: {name} has no effect unless " in err and f"or drop {name})" in err
+
+
+@pytest.mark.parametrize(("field", "why"), [
+    ("p_repair", "no gradient repair on gait problems"),
+    ("repair_margin", "no gradient repair on gait problems; no SQP refinement on gait problems"),
+    ("penalty", "gait problems have no constraints"),
+])
+def test_gait_params_without_effect_name_nothing_gait_cannot_set(field, why, tmp_path):
+    """eaco gait offers no repair_steps, refine_ants or constraint_method: a field only they
+    would make act is refused with the reason, not with 'set that too'."""
+    err = one_line_error(["gait", "--params", f"{field}=0.5", "--iterations", "1", "--out",
+                          str(tmp_path)])
+    assert err == f"error: --params: {field} has no effect in eaco gait ({why}); drop it"
+
+
+def test_a_switch_the_command_can_set_is_still_named():
+    """Where one name of the switch is settable, the line names the switch as before."""
+    from eaco_jax.errors import ConfigError
+    from eaco_jax.runs.base import refuse_inactive, switch_names
+    from eaco_jax.strategies import ContinuousEACO
+
+    assert switch_names("repair_steps > 0 or refine_ants > 0") == ["repair_steps",
+                                                                   "refine_ants"]
+    assert switch_names("constraint_method='epsilon'") == ["constraint_method"]
+    strategy = ContinuousEACO(num_ants=4, archive_size=6, refine_ants=0, repair_steps=0)
+    params = strategy.default_params()
+    with pytest.raises(ConfigError, match=r"^repair_margin has no effect unless repair_steps "
+                       r"> 0 or refine_ants > 0 \(set that too, or drop repair_margin\)$"):
+        refuse_inactive(strategy, params, ["repair_margin"],
+                        fixed={"repair_steps": "no repair"}, command="eaco x")
 
 
 def test_gait_params_are_checked():

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-from collections.abc import Callable, Iterator
+import re
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -155,27 +156,45 @@ def params_with(base: Any, overrides: dict[str, Any], where: str = "") -> Any:
     return base.replace(**changes)
 
 
-def refuse_inactive(strategy: Any, params: Any, names: Any, where: str = "") -> None:
+def switch_names(switch: str) -> list[str]:
+    """The field names a switch of ``inactive_params`` reads, in order (``"repair_steps > 0 or
+    refine_ants > 0"`` -> repair_steps, refine_ants; quoted values and keywords skipped)."""
+    bare = re.sub(r"'[^']*'|\"[^\"]*\"", "", switch)
+    words = re.findall(r"[A-Za-z_]\w*", bare)
+    return list(dict.fromkeys(w for w in words if w not in ("and", "or", "not")))
+
+
+def refuse_inactive(strategy: Any, params: Any, names: Any, where: str = "",
+                    fixed: Mapping[str, str] | None = None,
+                    command: str = "this command") -> None:
     """One ConfigError line for a set Params field that these switches leave unused (a
-    setting that would change nothing), naming the switch that makes it act, as a sweep
-    refuses sweeping it."""
+    setting that would change nothing), as a sweep refuses sweeping it. The line names the
+    switch that makes the field act, unless ``command`` holds every name in that switch
+    fixed (``fixed``: name -> why, for switches its user cannot set): then it says why."""
     dead = strategy.inactive_params(params)
+    fixed = fixed or {}
     for name in names:
-        if name in dead:
-            raise ConfigError(f"{where}{name} has no effect unless {dead[name]} (set that "
-                              f"too, or drop {name})")
+        if name not in dead:
+            continue
+        held = switch_names(dead[name])
+        if held and all(h in fixed for h in held):
+            why = "; ".join(dict.fromkeys(fixed[h] for h in held))
+            raise ConfigError(f"{where}{name} has no effect in {command} ({why}); drop it")
+        raise ConfigError(f"{where}{name} has no effect unless {dead[name]} (set that "
+                          f"too, or drop {name})")
 
 
 def params_from(strategy: Any, problem: Any, text: str | None,
-                where: str = "--params: ") -> Any:
+                where: str = "--params: ", fixed: Mapping[str, str] | None = None,
+                command: str = "this command") -> Any:
     """The strategy's default Params for ``problem`` with the overrides ``text``
     (``"q0=0.9,use_chaos=true"``, the ``params`` setting of every search command), checked:
     unknown fields, values outside their ranges and fields the switches leave unused are one
-    ConfigError line each."""
+    ConfigError line each (``fixed``, ``command``: see :func:`refuse_inactive`)."""
     overrides = parse_overrides(text)
     params = params_with(strategy.default_params(problem), overrides, where)
     strategy.check_params(params, where)
-    refuse_inactive(strategy, params, overrides, where)
+    refuse_inactive(strategy, params, overrides, where, fixed, command)
     return params
 
 

@@ -64,6 +64,11 @@ def _check_robust(robust: int, trials: int, penalty: str | None) -> None:
 EVAL_HORIZON = 20.0
 INIT_RADIUS = 0.15
 """``init`` search box: +/- this fraction of each parameter's range around the stored gait."""
+#: the colony's switches ``eaco gait`` holds fixed (no option sets them) -> why: a --params
+#: field only they would make act is refused with this reason
+FIXED_SWITCHES = {"repair_steps": "no gradient repair on gait problems",
+                  "refine_ants": "no SQP refinement on gait problems",
+                  "constraint_method": "gait problems have no constraints"}
 
 METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_time",
                "turn_deg_s")
@@ -308,8 +313,8 @@ def build(s: GaitSettings) -> Built:
     ants = int(s.ants)
     strategy = ContinuousEACO(num_ants=ants, archive_size=max(2, (3 * ants) // 2),
                               refine_ants=0, repair_steps=0)
-    return Built(search, strategy, params_from(strategy, search, s.params),
-                 budget_of(s, s.iterations), extra=extra)
+    params = params_from(strategy, search, s.params, fixed=FIXED_SWITCHES, command="eaco gait")
+    return Built(search, strategy, params, budget_of(s, s.iterations), extra=extra)
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
