@@ -53,9 +53,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from common import timed
-from eaco_jax.robots import load_robot
 
 import eaco_jax as ea
+from eaco_jax.gait.robot import load_robot
 from eaco_jax.gait.rollout_mjx import mjx_model
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
 from eaco_jax.problems.gait import make_gait_problem

@@ -11,10 +11,10 @@ import json
 
 import numpy as np
 import pytest
-from eaco_jax.robots import load_robot
 from typer.testing import CliRunner
 
 from eaco_jax.cli import app
+from eaco_jax.gait.robot import load_robot
 from eaco_jax.gait.walk_engine import PARAM_NAMES
 from eaco_jax.runs import kinds
 

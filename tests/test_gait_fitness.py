@@ -6,10 +6,10 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
-from eaco_jax.robots import load_robot
 
 from eaco_jax.gait import walk_engine as we
 from eaco_jax.gait.fitness import gait_fitness, summarize
+from eaco_jax.gait.robot import load_robot
 from eaco_jax.gait.rollout_native import initial_state, native_model, native_trace, root_trace
 
 DT = 0.02

@@ -4,9 +4,9 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
-from eaco_jax.robots import load_model, load_robot
 
 from eaco_jax.gait.ik import leg_fk, leg_ik
+from eaco_jax.gait.robot import load_model, load_robot
 
 THIGH, TIBIA = 0.1, 0.1029
 

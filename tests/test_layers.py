@@ -1,6 +1,6 @@
 """The package's layers import only downwards, and no modules import each other in a loop.
 
-Layers (ARCHITECTURE.md): foundation <- ops, gait, robots <- problems <- strategies <- driver
+Layers (ARCHITECTURE.md): foundation <- ops, gait (with the robot spec loader) <- problems <- strategies <- driver
 <- runs <- sweep <- cli. Every import counts, also one inside a function.
 """
 
@@ -17,7 +17,7 @@ PACKAGE = ROOT / "eaco_jax"
 #: module prefix -> layer (the longest matching prefix decides)
 LAYERS = {
     "eaco_jax._version": 0, "eaco_jax.errors": 0, "eaco_jax.outputs": 0, "eaco_jax.plots": 0,
-    "eaco_jax.ops": 1, "eaco_jax.gait": 1, "eaco_jax.robots": 1,
+    "eaco_jax.ops": 1, "eaco_jax.gait": 1,
     "eaco_jax.problems": 2,
     "eaco_jax.strategies": 3,
     "eaco_jax.driver": 4,

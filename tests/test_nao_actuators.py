@@ -19,9 +19,9 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
-from eaco_jax.robots import ROBOTS_DIR, load_model, load_robot, motor_constants
 
 from eaco_jax.gait import walk_engine as we
+from eaco_jax.gait.robot import ROBOTS_DIR, load_model, load_robot, motor_constants
 from eaco_jax.problems.gait import make_gait_problem
 
 STEPS = 100  # 0.4 s at the fast timestep

@@ -4,8 +4,8 @@ the robot registry gives clear errors; brax's ant loads as a second robot."""
 import mujoco
 import numpy as np
 import pytest
-from eaco_jax.robots import known_robots, load_model, load_robot, stand_qpos
 
+from eaco_jax.gait.robot import known_robots, load_model, load_robot, stand_qpos
 from eaco_jax.gait.rollout_native import native_trace
 
 
@@ -58,7 +58,7 @@ def test_slope_tilts_the_floor(nao):
 
 def test_registry_errors_and_ant():
     assert {"nao", "ant"} <= set(known_robots())
-    with pytest.raises(ValueError, match="known robots: ant, nao"):
+    with pytest.raises(ValueError, match="known robots: ant, .*nao"):
         load_robot("atlas")
     ant = load_robot("ant")
     model = load_model(ant)

@@ -4,9 +4,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from eaco_jax.robots import load_robot
 
 from eaco_jax.gait import walk_engine as we
+from eaco_jax.gait.robot import load_robot
 
 
 @pytest.fixture(scope="module")

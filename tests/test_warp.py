@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from eaco_jax.robots import load_robot
 
 from eaco_jax.errors import ProblemError
 from eaco_jax.gait.mjx_import import warp_usable
+from eaco_jax.gait.robot import load_robot
 from eaco_jax.gait.rollout_mjx import contact_capacity
 from eaco_jax.gait.rollout_native import native_model
 from eaco_jax.problems.gait import make_gait_problem

@@ -158,7 +158,7 @@ def overheating(rms_torque_frac, joint_names) -> list[str]:
 
 
 def sole_sensor_names(spec) -> list[str]:
-    """Names of the ``framepos`` sensors :func:`eaco_jax.robots.load_model` adds per sole."""
+    """Names of the ``framepos`` sensors :func:`eaco_jax.gait.robot.load_model` adds per sole."""
     return [f"sole_pos_{g}" for g in spec.foot_geoms]
 
 

@@ -26,6 +26,7 @@ import numpy as np
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import is_down
 from eaco_jax.gait.mjx_import import quiet_mjx
+from eaco_jax.gait.robot import RobotSpec
 from eaco_jax.gait.rollout_native import (
     floor_normal,
     initial_state,
@@ -45,7 +46,6 @@ from eaco_jax.gait.worlds import (
     push_at,
     world_ctrl_at,
 )
-from eaco_jax.robots import RobotSpec
 
 mjx = quiet_mjx()
 

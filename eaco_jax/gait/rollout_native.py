@@ -34,6 +34,7 @@ from mujoco import rollout as mj_rollout
 
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import is_down
+from eaco_jax.gait.robot import RobotSpec, load_model, stand_qpos
 from eaco_jax.gait.walk_engine import stand_pose
 from eaco_jax.gait.worlds import (
     VARIED_FIELDS,
@@ -46,7 +47,6 @@ from eaco_jax.gait.worlds import (
     push_at,
     world_ctrl_at,
 )
-from eaco_jax.robots import RobotSpec, load_model, stand_qpos
 
 TRACE_COLUMNS = 7
 """Torso trace columns: position (3), up axis (3), heading (yaw, rad)."""

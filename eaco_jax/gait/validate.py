@@ -33,9 +33,9 @@ import mujoco
 import numpy as np
 
 from eaco_jax.errors import ProblemError
+from eaco_jax.gait.robot import model_xml
 from eaco_jax.gait.rollout_native import initial_state, substeps
 from eaco_jax.gait.worlds import RobustConfig, couple_controls, world_key
-from eaco_jax.robots import model_xml
 
 TRIAL_STREAM = 1
 """Key stream of validation trials (optimisation draws its worlds from stream 0)."""

@@ -30,6 +30,7 @@ from flax import struct
 
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import TURNS, GaitSummary, aggregate, gait_fitness, summarize
+from eaco_jax.gait.robot import RobotSpec, known_robots, load_robot
 from eaco_jax.gait.rollout_mjx import mjx_rollout
 from eaco_jax.gait.rollout_native import (
     native_model,
@@ -39,7 +40,6 @@ from eaco_jax.gait.rollout_native import (
 from eaco_jax.gait.walk_engine import bounds, control_sequence, param_names
 from eaco_jax.gait.worlds import RobustConfig, Worlds, couple_controls, sample_worlds, world_key
 from eaco_jax.problems.base import Evaluation, ProblemError
-from eaco_jax.robots import RobotSpec, known_robots, load_robot
 
 BACKENDS = ("auto", "mjx", "native")
 PENALTIES = (None, "power", "cot")
@@ -357,7 +357,8 @@ def make_gait_problem(
     impl: str = "auto",
     turn: str | None = None,
 ) -> GaitProblem:
-    """A :class:`GaitProblem` for a known robot ("nao", "ant") and backend ("auto", "mjx",
+    """A :class:`GaitProblem` for a robot (a shipped one's name: "nao", "ant", ..., or the path
+    of a spec .json, see docs/robots.md) and backend ("auto", "mjx",
     "native"); the horizon in seconds, the desired walking direction and floor slope in degrees;
     ``robust`` for fitness over randomised worlds, ``penalty`` ("power" | "cot") and its weight
     for an energy-aware fitness; ``turn`` ("left" | "right") scores the heading turned instead
