@@ -21,6 +21,14 @@ Both backends feed the same functions (``xp`` = ``numpy`` on the host for native
   and a right sole-sphere centre minus 16 mm (each foot box reaches 8 mm beyond its spheres), so
   a gap <= 0 means the feet would touch.
 
+* with the robot's electrical data (:mod:`eaco_jax.gait.motors`): motor current per physics
+  step (gear efficiency one way driving, the other braking), RMS current per joint against the
+  continuous rating, peak current against the current limit, electrical energy (copper loss plus
+  shaft power, >= 0 per joint) and electrical cost of transport, the winding temperature after
+  the rollout (two-node thermal model from 25 C, exact per control step) and, from the mean
+  loss plus the ripple bound, the winding after ten minutes and at steady state of continuous
+  walking and the minutes until it reaches the firmware limit.
+
 Everything counts only until the fall (the steps of control step ``k`` count while torso samples
 ``0..k`` are all upright), the same horizon the fitness uses.
 """
@@ -31,6 +39,8 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
+
+from eaco_jax.gait import motors as mo
 
 G = 9.81
 CONTACT_TOL = 0.002  # m above the sole-sphere radius
@@ -72,20 +82,46 @@ def drive_torque(q, qdot, ctrl, mp: MotorParams, xp=jnp):
     return force - mp.damping * qdot
 
 
-def new_acc(batch: tuple[int, ...], nu: int, xp=jnp) -> dict:
-    """Empty accumulators for a batch of rollouts."""
+def new_acc(batch: tuple[int, ...], nu: int, xp=jnp, motor: bool = False) -> dict:
+    """Empty accumulators for a batch of rollouts (``motor``: also the electrical and thermal
+    ones of :class:`Electrics`)."""
     z = lambda *s: xp.zeros(batch + s, xp.float32)  # noqa: E731
-    return {
+    acc = {
         "energy": z(), "peak_power": z(), "steps": z(), "ctrl_steps": z(), "air_steps": z(),
         "slip": z(), "min_gap": xp.full(batch, np.inf, xp.float32),
         "peak_speed": z(nu), "peak_torque": z(nu), "sum_tau2": z(nu),
         "prev_xy": z(2, 2), "prev_contact": xp.zeros(batch + (2,), bool),
     }
+    if motor:
+        acc.update({"energy_el": z(), "sum_i2": z(nu), "peak_i": z(nu), "loss_j": z(nu),
+                    "therm": z(nu, 2), "loss_blocks": z(mo.BLOCKS, nu)})
+    return acc
 
 
-def add_physics(acc: dict, q, qdot, ctrl, alive, mp: MotorParams, dt: float, xp=jnp) -> dict:
+class Electrics(NamedTuple):
+    """What :func:`add_physics` needs for the electrical and thermal accumulators: the motor
+    model, its thermal modes for one control step, physics steps per control step and the
+    horizon in control steps (which sets the loss blocks)."""
+
+    model: mo.MotorModel
+    modes: mo.Modes
+    substeps: int
+    horizon: int
+
+
+def electrics(spec, control_dt: float, substeps: int, horizon: int) -> Electrics | None:
+    """:class:`Electrics` of a robot (None without electrical data)."""
+    mm = mo.motor_model(spec)
+    if mm is None:
+        return None
+    return Electrics(mm, mo.modes(mm, control_dt), int(substeps), int(horizon))
+
+
+def add_physics(acc: dict, q, qdot, ctrl, alive, mp: MotorParams, dt: float, xp=jnp,
+                el: Electrics | None = None, step0=0) -> dict:
     """Accumulate physics steps: ``q`` (before), ``qdot`` (after) ``(B, S, nu)``, ``ctrl``
-    ``(B, S, nu)`` or ``(B, 1, nu)``, ``alive`` ``(B, S)``; ``mp`` fields ``(B, 1, nu)``."""
+    ``(B, S, nu)`` or ``(B, 1, nu)``, ``alive`` ``(B, S)``; ``mp`` fields ``(B, 1, nu)``.
+    With ``el`` the steps are whole control steps, the first one ``step0``."""
     tau = drive_torque(q, qdot, ctrl, mp, xp)
     m = alive[..., None]
     power = xp.sum(xp.maximum(tau * qdot, 0.0), axis=-1)
@@ -99,7 +135,35 @@ def add_physics(acc: dict, q, qdot, ctrl, alive, mp: MotorParams, dt: float, xp=
     torque = xp.where(m, xp.abs(tau) / mp.stall, 0.0)
     out["peak_torque"] = xp.maximum(acc["peak_torque"], xp.max(torque, axis=-2))
     out["sum_tau2"] = acc["sum_tau2"] + xp.sum(xp.where(m, tau * tau, 0.0), axis=-2)
+    if el is not None:
+        out.update(_add_electrics(acc, tau, qdot, m, dt, el, step0, xp))
     return out
+
+
+def _add_electrics(acc: dict, tau, qdot, m, dt: float, el: Electrics, step0, xp) -> dict:
+    mm = el.model
+    i = mo.current(tau, qdot, mm, xp)
+    loss = xp.where(m, mo.copper_loss(i, mm, xp), 0.0)  # (B, S, nu)
+    p_el = xp.where(m, mo.electrical_power(tau, qdot, i, mm, xp), 0.0)
+    b, s, nu = loss.shape
+    k = s // el.substeps
+    per_ctrl = xp.mean(loss.reshape(b, k, el.substeps, nu), axis=2)  # (B, K, nu) held losses
+    ctrl_dt = el.substeps * dt
+    blk = (step0 + xp.arange(k)) * mo.BLOCKS // max(el.horizon, 1)
+    blk = xp.minimum(blk, mo.BLOCKS - 1)
+    if xp is np:
+        blocks = np.array(acc["loss_blocks"], copy=True)
+        np.add.at(blocks, (slice(None), blk), per_ctrl * ctrl_dt)
+    else:
+        blocks = acc["loss_blocks"].at[:, blk].add(per_ctrl * ctrl_dt)
+    return {
+        "energy_el": acc["energy_el"] + xp.sum(p_el, axis=(-1, -2)) * dt,
+        "sum_i2": acc["sum_i2"] + xp.sum(xp.where(m, i * i, 0.0), axis=-2),
+        "peak_i": xp.maximum(acc["peak_i"], xp.max(xp.where(m, xp.abs(i), 0.0), axis=-2)),
+        "loss_j": acc["loss_j"] + xp.sum(loss, axis=-2) * dt,
+        "therm": mo.advance(acc["therm"], per_ctrl, el.modes, xp).astype(xp.float32),
+        "loss_blocks": blocks.astype(xp.float32),
+    }
 
 
 def add_control(acc: dict, soles, alive, normal, radius: float, xp=jnp) -> dict:
@@ -127,9 +191,11 @@ def add_control(acc: dict, soles, alive, normal, radius: float, xp=jnp) -> dict:
     return out
 
 
-def finalize(acc: dict, distance, mass, dt: float, nominal) -> dict:
+def finalize(acc: dict, distance, mass, dt: float, nominal, motor: mo.MotorModel | None = None
+             ) -> dict:
     """Metrics (batched like ``acc``) from accumulators, the distance walked in the desired
-    direction until the fall, the robot's mass and the actuators' nominal torque."""
+    direction until the fall, the robot's mass and the actuators' nominal torque (``motor``:
+    also the electrical and thermal metrics)."""
     steps = jnp.maximum(acc["steps"], 1.0)
     seconds = steps * dt
     energy = acc["energy"]
@@ -148,6 +214,36 @@ def finalize(acc: dict, distance, mass, dt: float, nominal) -> dict:
         "foot_slip_m": acc["slip"],
         "airborne_fraction": acc["air_steps"] / jnp.maximum(acc["ctrl_steps"], 1.0),
         "min_foot_gap_m": acc["min_gap"],
+    } | (_finalize_electrics(acc, distance, mass, seconds, steps, motor)
+         if motor is not None and "therm" in acc else {})
+
+
+def _finalize_electrics(acc, distance, mass, seconds, steps, mm: mo.MotorModel) -> dict:
+    energy = acc["energy_el"]
+    md = mo.modes(mm, 1.0)
+    temps = mo.temperatures(acc["therm"], md)
+    amb = jnp.asarray(mm.t_ambient, jnp.float32)
+    power = acc["loss_j"] / seconds[..., None]  # mean copper loss (W) per motor
+    ripple = mo.ripple_bound(acc["loss_blocks"], seconds, power, mm)
+    hot10 = mo.step_response(mo.TEN_MINUTES, power, mm)[..., 0]
+    steady = mo.steady_state(power, mm)[..., 0]
+    endurance = mo.minutes_to_limit(power, ripple, mm)
+    f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+    return {
+        "electrical_energy_j": energy,
+        "mean_electrical_power_w": energy / seconds,
+        "electrical_cot": jnp.where(distance > 0.01,
+                                    energy / (mass * G * jnp.maximum(distance, 0.01)), jnp.nan),
+        "rms_current_frac": f32(jnp.sqrt(acc["sum_i2"] / steps[..., None]) / mm.i_cont),
+        "peak_current_frac": f32(acc["peak_i"] / mm.i_limit),
+        "copper_loss_w": f32(power),
+        "winding_end_c": f32(amb + temps[..., 0]),
+        "winding_ripple_c": f32(ripple),
+        "winding_10min_c": f32(amb + hot10 + ripple),
+        "winding_steady_c": f32(amb + steady + ripple),
+        "endurance_min": f32(endurance),
+        "min_endurance_min": f32(jnp.min(endurance, axis=-1)),
+        "peak_current_max_frac": f32(jnp.max(acc["peak_i"] / mm.i_limit, axis=-1)),
     }
 
 
@@ -162,5 +258,5 @@ def sole_sensor_names(spec) -> list[str]:
     return [f"sole_pos_{g}" for g in spec.foot_geoms]
 
 
-__all__ = ["MotorParams", "add_control", "add_physics", "drive_torque", "finalize",
-           "motor_params", "new_acc", "overheating"]
+__all__ = ["Electrics", "MotorParams", "add_control", "add_physics", "drive_torque",
+           "electrics", "finalize", "motor_params", "new_acc", "overheating"]

@@ -240,6 +240,7 @@ def mjx_rollout(
                                                             (r, nu)), world_of, axis=0)[:, None]
                                   for x in motor))
     sole_adr = None
+    el = ql.electrics(spec, spec.control_dt, k, n_steps) if quality else None
     if quality:
         sole_adr = np.concatenate([model.sensor_adr[model.sensor(n).id] + np.arange(3)
                                    for n in ql.sole_sensor_names(spec)])
@@ -270,7 +271,7 @@ def mjx_rollout(
             d, (q, qdot) = jax.lax.scan(sub, d, None, length=k)
             keep = jnp.broadcast_to(alive[:, None], (nb, k))
             acc = ql.add_physics(acc, jnp.swapaxes(q, 0, 1), jnp.swapaxes(qdot, 0, 1),
-                                 u[:, None], keep, mp, dt)
+                                 u[:, None], keep, mp, dt, el=el, step0=t)
             soles = d.sensordata[:, sole_adr].reshape(nb, 1, -1, 3)
             acc = ql.add_control(acc, soles, alive[:, None], normal, radius)
         elif worlds is None:
@@ -286,7 +287,7 @@ def mjx_rollout(
 
     start = root_trace(data.qpos)
     alive0 = ~is_down(start[:, :3], start[:, 3:6], spec.fall_height, spec.fall_tilt_deg, slope_deg)
-    acc0 = ql.new_acc((nb,), nu) if quality else None
+    acc0 = ql.new_acc((nb,), nu, motor=el is not None) if quality else None
     peak0 = jnp.zeros((2,), jnp.int32)
     (_, acc, _, peak), (trace, qpos) = jax.lax.scan(
         control_step, (data, acc0, alive0, peak0), jnp.arange(n_steps))

@@ -194,7 +194,8 @@ def native_rollout(
         qpos_rec[:, 0] = state[:, 1 : 1 + base.nq]
     acc = None
     if quality:
-        acc = ql.new_acc((nb,), spec.nu, xp=np)
+        el = ql.electrics(spec, spec.control_dt, k, steps)
+        acc = ql.new_acc((nb,), spec.nu, xp=np, motor=el is not None)
         motor = motor or nominal_motor(spec, base)
         mp = ql.MotorParams(*(np.broadcast_to(np.asarray(a, np.float32), (nb, spec.nu))[:, None]
                               for a in motor))
@@ -233,7 +234,7 @@ def native_rollout(
             acc = ql.add_physics(acc, q_before.astype(np.float32), qdot.astype(np.float32),
                                  ctrl[..., : spec.nu].astype(np.float32),
                                  np.repeat(alive_k, k, axis=1), mp, float(base.opt.timestep),
-                                 xp=np)
+                                 xp=np, el=el, step0=start)
             soles = sens[:, k - 1 :: k][..., sole].reshape(nb, stop - start, -1, 3)
             acc = ql.add_control(acc, soles.astype(np.float32), alive_k, normal, radius, xp=np)
             alive = alive & ~np.any(down, axis=1)
@@ -344,7 +345,7 @@ def native_rollout_callback(
     shapes: dict[str, jax.ShapeDtypeStruct] = {
         "trace": jax.ShapeDtypeStruct(lead + (nb, t + 1, TRACE_COLUMNS), jnp.float32)}
     if quality:
-        template = ql.new_acc((nb,), nu, xp=np)
+        template = ql.new_acc((nb,), nu, xp=np, motor=ql.mo.motor_model(spec) is not None)
         shapes["acc"] = {k: jax.ShapeDtypeStruct(lead + v.shape, v.dtype)
                          for k, v in template.items()}
     names = sorted(args)

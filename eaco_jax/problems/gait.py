@@ -159,7 +159,7 @@ class GaitProblem:
             mass = jnp.take(per_world, jnp.arange(nb) % r)
             nominal = jnp.take(nominal * worlds.stall_scale, jnp.arange(nb) % r, axis=0)
         dt = float(model.opt.timestep)
-        return ql.finalize(acc, distance, mass, dt, nominal)
+        return ql.finalize(acc, distance, mass, dt, nominal, ql.mo.motor_model(self.spec))
 
     def _penalised(self, res: dict) -> jax.Array:
         fit = res["fitness"]
@@ -190,11 +190,16 @@ class GaitProblem:
             out = {k: jnp.mean(v.astype(jnp.float32), axis=1) for k, v in res.items()}
             out["fitness"] = aggregate(res["fitness"], cfg.aggregate, cfg.alpha)
             for k in ("peak_power_w", "peak_speed_frac", "peak_torque_frac",
-                      "joint_peak_speed_frac", "joint_peak_torque_frac"):
+                      "joint_peak_speed_frac", "joint_peak_torque_frac", "peak_current_frac",
+                      "peak_current_max_frac", "winding_10min_c", "winding_steady_c",
+                      "winding_end_c"):
                 if k in res:
                     out[k] = jnp.max(res[k], axis=1)
-            if "min_foot_gap_m" in res:
-                out["min_foot_gap_m"] = jnp.min(res["min_foot_gap_m"], axis=1)
+            for k in ("min_foot_gap_m", "endurance_min", "min_endurance_min"):
+                if k in res:
+                    out[k] = jnp.min(res[k], axis=1)
+            if "electrical_cot" in res:
+                out["electrical_cot"] = jnp.nanmean(res["electrical_cot"], axis=1)
             if "cost_of_transport" in res:
                 out["cost_of_transport"] = jnp.nanmean(res["cost_of_transport"], axis=1)
         if not quality:
@@ -305,7 +310,24 @@ def quality_record(q: dict, joint_names) -> dict[str, Any]:
     rms = np.asarray(q["rms_torque_frac"]).reshape(-1, len(joint_names))[0]
     rec["rms_torque_frac"] = {n: float(v) for n, v in zip(joint_names, rms, strict=True)}
     rec["overheating"] = ql.overheating(rms, joint_names)
+    if "endurance_min" in q:
+        rec.update({k: float(np.asarray(q[k]).reshape(-1)[0]) for k in MOTOR_SCALARS})
+        rec["motors"] = motor_table(q, joint_names)
     return rec
+
+
+MOTOR_SCALARS = ("electrical_energy_j", "mean_electrical_power_w", "electrical_cot",
+                 "min_endurance_min", "peak_current_max_frac")
+MOTOR_COLUMNS = ("rms_current_frac", "peak_current_frac", "copper_loss_w", "winding_end_c",
+                 "winding_ripple_c", "winding_10min_c", "winding_steady_c", "endurance_min")
+
+
+def motor_table(q: dict, joint_names) -> dict[str, dict[str, float | None]]:
+    """Per joint electrical and thermal figures of one gait (``q`` with a leading axis of 1):
+    :data:`MOTOR_COLUMNS`; an endless endurance is None (JSON has no infinity)."""
+    cols = {c: np.asarray(q[c]).reshape(-1, len(joint_names))[0] for c in MOTOR_COLUMNS}
+    return {n: {c: (float(v[j]) if np.isfinite(v[j]) else None) for c, v in cols.items()}
+            for j, n in enumerate(joint_names)}
 
 
 def _resolve_backend(backend: str) -> str:
