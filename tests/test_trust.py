@@ -268,3 +268,54 @@ def test_capped_run_checkpoints_resume_cleanly(tmp_path):
         np.testing.assert_array_equal(r.best_cost, unbroken.best_cost)
         np.testing.assert_array_equal(r.evaluations, unbroken.evaluations)
         assert r.iterations == unbroken.iterations
+
+
+# --------------------------------------------------------------------------- working sets
+def test_tsp_colony_whose_iteration_does_not_fit_is_refused_up_front():
+    """The state check alone let a colony through whose local search needs 100x its state."""
+    from typer.testing import CliRunner
+
+    from eaco_jax.cli import app
+    from eaco_jax.driver.minimize import check_state_memory, memory_limit
+
+    p = load_tsplib("pr1002")
+    ants = memory_limit() // (1002 * 1712) + 1  # or-2opt on 20 candidates: ~1.7 kB a city
+    s = GraphEACO(num_ants=ants, local_search="or-2opt")
+    with pytest.raises(ConfigError, match=r"per iteration .* use fewer ants \(at most ~\d+\)"):
+        check_state_memory(s, p, 1, s.default_params(p))
+    res = CliRunner().invoke(app, ["tsp", "pr1002", "--ants", str(ants), "--ls-best-k",
+                                   str(ants), "--local-search", "or-2opt", "--iterations", "1"])
+    assert res.exit_code == 2 and "Traceback" not in res.output, res.output
+    err = res.output.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "use fewer ants" in err[0]
+
+
+def test_out_of_memory_in_a_chunk_is_one_line():
+    """A real XLA RESOURCE_EXHAUSTED (a 16 TiB buffer) inside the compiled chunk."""
+    p = ConstrainedProblem(
+        lambda x: jnp.cumsum(jnp.broadcast_to(x[0], (2**20, 2**19)), axis=0)[-1, 0],
+        lower=[0.0, 0.0], upper=[1.0, 1.0], name="hungry")
+    with pytest.raises(ConfigError, match="out of memory running .* 'hungry'.* use fewer ants "
+                       "or a smaller batch/chunk") as err:
+        ea.minimize(p, ContinuousEACO(num_ants=2, refine_ants=0), seed=0, iterations=1)
+    assert "\n" not in str(err.value)
+
+
+def test_large_continuous_problem_warns_and_refuses_by_its_hessians():
+    from eaco_jax.driver.minimize import check_state_memory, memory_limit
+
+    def sphere(dim):
+        return ConstrainedProblem(lambda x: jnp.sum(x ** 2), lower=[-1.0] * dim,
+                                  upper=[1.0] * dim, name="wide")
+
+    s, lean = ContinuousEACO(), ContinuousEACO(refine_ants=0)
+    p = sphere(4500)  # 14 float32 matrices of 4500^2: 1.1 GB
+    with pytest.warns(UserWarning, match=r"'wide' needs ~1\.\d GiB per iteration .*4500 x 4500 "
+                      "Hessians"):
+        check_state_memory(s, p, 1, s.default_params(p))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_state_memory(lean, p, 1, lean.default_params(p))  # linear in dim: no word
+    p = sphere(int((memory_limit() / 56) ** 0.5) + 1)
+    with pytest.raises(ConfigError, match=r"more than half .* use ContinuousEACO\(refine_ants=0"):
+        check_state_memory(s, p, 1, s.default_params(p))

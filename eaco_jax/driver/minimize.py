@@ -584,15 +584,73 @@ def state_row_bytes(strategy: Strategy, problem: Any, params: Any) -> int:
                if hasattr(a, "dtype") and not jnp.issubdtype(a.dtype, jax.dtypes.prng_key))
 
 
+#: bytes per ant and city of one graph-colony iteration besides the state (construction's tours,
+#: visited masks and candidate rows, the next state's tours): XLA's memory analysis of one step
+#: on pr1002 gives 27 on a CPU
+GRAPH_ANT_CITY_BYTES = 32
+#: local search, per searched tour and city: a base plus one term per scanned candidate (XLA's
+#: memory analysis of the batched or-2opt on pr1002: 750 B at 8 candidates, 1,710 B at 20)
+LS_CITY_BYTES, LS_CANDIDATE_BYTES = 112, 80
+#: continuous refinement (SQP steps with autodiff Hessians): dim x dim matrices of the problem's
+#: dtype per iteration (XLA's memory analysis at dim 1,000: 14 in float32, 12 in float64)
+HESSIAN_MATRICES = 14
+#: one iteration's working set from which minimize warns (one line) before it starts
+WARN_WORKING_SET = 2**30
+
+
+def working_set_bytes(strategy: Strategy, problem: Any) -> tuple[int, str]:
+    """Estimated bytes one iteration of one row allocates besides its state, and what they are
+    (for the messages): the per-ant arrays of tour construction and local search on graph
+    problems, the dim x dim Hessians of continuous refinement; 0 for what is not modelled."""
+    m = int(strategy.num_ants)
+    if getattr(problem, "kind", None) == "graph" and hasattr(problem, "n"):
+        n = int(problem.n)
+        work, what = GRAPH_ANT_CITY_BYTES * m * n, f"building {m} tours of {n} cities"
+        if getattr(strategy, "local_search", "none") != "none":
+            searched = min(m, int(getattr(strategy, "ls_best_k", None) or m))
+            width = int(getattr(problem, "neighbors", np.zeros((n, 0))).shape[-1])
+            scanned = min(width, int(getattr(strategy, "ls_neighbors", None) or width))
+            work += searched * n * (LS_CITY_BYTES + LS_CANDIDATE_BYTES * scanned)
+            what += f" and searching {searched} of them"
+        return work, what
+    if getattr(problem, "kind", None) == "continuous" and getattr(strategy, "refine_ants", 0):
+        dim = int(getattr(problem, "dim", 0))
+        itemsize = np.dtype(getattr(problem, "dtype", np.float32)).itemsize
+        return (HESSIAN_MATRICES * itemsize * dim * dim,
+                f"refinement's {dim} x {dim} Hessians")
+    return 0, ""
+
+
 def check_state_memory(strategy: Strategy, problem: Any, rows: int, params: Any) -> None:
-    """Refuse a colony whose state alone would not fit in memory (abstract: nothing allocated)."""
+    """Refuse a colony whose state, or state plus one iteration's working set
+    (:func:`working_set_bytes`), would not fit in memory (abstract: nothing allocated); warn in
+    one line when one iteration needs more than :data:`WARN_WORKING_SET`."""
     one = params[0] if isinstance(params, list | tuple) else params
     need, limit = state_row_bytes(strategy, problem, one) * rows, _memory_limit()
+    colony = f"{type(strategy).__name__}(num_ants={strategy.num_ants})"
     if need > limit // 2:
         raise ConfigError(
-            f"the colony state needs {need / 2**30:.1f} GiB ({rows} row(s) of "
-            f"{type(strategy).__name__}(num_ants={strategy.num_ants})), more than half of the "
-            f"{limit / 2**30:.1f} GiB available; use fewer ants, seeds or settings")
+            f"the colony state needs {need / 2**30:.1f} GiB ({rows} row(s) of {colony}), more "
+            f"than half of the {limit / 2**30:.1f} GiB available; use fewer ants, seeds or "
+            "settings")
+    work, what = working_set_bytes(strategy, problem)
+    total = need + work * rows
+    name = getattr(problem, "name", type(problem).__name__)
+    if total > limit // 2:
+        fix = "use fewer ants, seeds or settings"
+        if getattr(problem, "kind", None) == "graph":  # both parts grow with the ants
+            most = max(1, int(strategy.num_ants * (limit // 2) / total))
+            fix = f"use fewer ants (at most ~{most}), seeds or settings"
+        elif "Hessians" in what:
+            fix = f"use {type(strategy).__name__}(refine_ants=0) (derivative-free, linear in dim)"
+        raise ConfigError(
+            f"{colony} on {name!r} needs ~{total / 2**30:.1f} GiB per iteration ({rows} row(s): "
+            f"the state and {what}), more than half of the {limit / 2**30:.1f} GiB available; "
+            f"{fix}")
+    if work * rows >= WARN_WORKING_SET:
+        warnings.warn(
+            f"{colony} on {name!r} needs ~{total / 2**30:.1f} GiB per iteration ({rows} "
+            f"row(s): the state and {what}); expect slow iterations", stacklevel=3)
 
 
 # --------------------------------------------------------------------------- the driver
@@ -805,8 +863,14 @@ def run(
                 t0 = time.perf_counter()
                 args = (problem, state, jnp.int32(length)) + ((budget,) if capped else ())
                 signals.at = done + length
-                state, hist = compiled(*args)
-                jax.block_until_ready(state)
+                try:
+                    state, hist = compiled(*args)
+                    jax.block_until_ready(state)
+                except jax.errors.JaxRuntimeError as err:
+                    oom = _out_of_memory(err, strategy, problem, len(seeds))
+                    if oom is None:
+                        raise
+                    raise oom from None
                 run_seconds += time.perf_counter() - t0
                 chunk_hist = _trim(jax.device_get(hist), length, batched)
                 history.append(chunk_hist)
@@ -850,6 +914,20 @@ def run(
         raise Interrupted(_interrupt_message(signals.name or "SIGINT", result, done, total,
                                              checkpointing), result)
     return result
+
+
+def _out_of_memory(err: Exception, strategy: Strategy, problem: Any,
+                   rows: int) -> ConfigError | None:
+    """A device out of memory in a chunk as one :class:`ConfigError` line (the last
+    checkpoint stays as it was); None for any other runtime error (it keeps its traceback)."""
+    text = str(err)
+    if "RESOURCE_EXHAUSTED" not in text and "out of memory" not in text.lower():
+        return None
+    first = " ".join(text.split())[:160].rstrip(".")
+    return ConfigError(
+        f"out of memory running {type(strategy).__name__}(num_ants={strategy.num_ants}) on "
+        f"{getattr(problem, 'name', type(problem).__name__)!r} ({rows} row(s)): {first}; use "
+        "fewer ants or a smaller batch/chunk")
 
 
 def _interrupt_message(name: str, result: Result, done: int, total: int,
