@@ -85,6 +85,16 @@ def test_every_colony_default_row_names_a_claim():
     assert COLONY_DEFAULTS and all(row.claim in ids for row in COLONY_DEFAULTS)
 
 
+def test_every_measured_default_names_a_claim():
+    """The construction plan per backend and the kernel's block size cite existing claims."""
+    from eaco_jax.ops.construction import AUTO_PLANS
+    from eaco_jax.ops.construction_kernel import BLOCK_CLAIM
+
+    ids = {c.id for c in CLAIMS}
+    cited = [row.claim for row in AUTO_PLANS] + [BLOCK_CLAIM]
+    assert AUTO_PLANS and [c for c in cited if c not in ids] == []
+
+
 def test_generated_results_and_headline_table_are_current():
     gen = _module(ROOT / "docs" / "generate.py", "generate")
     assert (ROOT / "docs" / "results.md").read_text() == gen.results_md() + "\n", "make docs"

@@ -336,3 +336,26 @@ def test_kernel_plan_on_the_gpu_builds_the_scan_plans_tours():
         a, b = (construct_tours(jax.random.key(3), w, starts, 0.1, None, f, p.neighbors, plan)
                 for plan in ("compact", "kernel"))
         assert float(jnp.mean(jnp.all(a == b, axis=1))) == 1.0
+
+
+def test_auto_runs_the_backends_row_of_the_plan_table(monkeypatch):
+    """fallback="auto" runs the plan AUTO_PLANS names for the backend: on a CPU "lazy", whose
+    steps branch (a cond) only where some ant needs its whole row; a table naming "dense" for
+    every backend gives the branch-free scan."""
+    from eaco_jax.ops import construction
+
+    assert [construction.auto_plan(b) for b in ("cpu", "gpu", "tpu")] == \
+        ["lazy", "kernel", "dense"]
+    n, m = 12, 5
+    d, tau, nbr = _instance(n=n)
+    w = choice_weights(tau, heuristic_log_eta(d), 1.0, 2.0)
+    starts = jnp.arange(m, dtype=jnp.int32)
+
+    def branches() -> bool:
+        jaxpr = jax.make_jaxpr(lambda key: construct_tours(key, w, starts, candidates=nbr))(
+            jax.random.key(0))
+        return "cond[" in str(jaxpr)
+
+    assert branches() == (jax.default_backend() == "cpu")
+    monkeypatch.setattr(construction, "AUTO_PLANS", (construction.PlanRow("*", "dense", "x"),))
+    assert construction.auto_plan("cpu") == "dense" and not branches()

@@ -18,6 +18,8 @@ cost per operation inside a loop, so fewer, larger operations are faster).
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 
@@ -98,24 +100,41 @@ def _sample(w: Array, u: Array, q0: Array) -> tuple[Array, Array]:
     return jnp.where(u < q0, greedy, sampled), ok
 
 
-def fallback_plan(m: int, n: int, backend: str | None = None) -> tuple[bool, int, int]:
-    """(lazy, backup, fallback_ants) of the automatic scan plan for the whole-row fallback.
+@dataclasses.dataclass(frozen=True)
+class PlanRow:
+    """One row of :data:`AUTO_PLANS`: the plan ``fallback="auto"`` runs on ``backend`` (a
+    ``jax.default_backend()`` name; "*": any other)."""
 
-    CPU: "lazy" (a branch on steps where some ant needs the fallback, at most FALLBACK_ANTS
-    compacted ants; measured best on XLA:CPU). Accelerators without candidate lists: "dense".
-    (With candidate lists on a GPU, ``construct_tours`` runs plan "kernel" instead: 4-17x the
-    tours/s of every scan plan at 1,024-65,536 ants on an H100,
-    ``experiments/results/gpu/tsp_scale_pr1002_h100_kernel.json``.)
-    """
+    backend: str
+    plan: str
+    claim: str  # the id in experiments/claims.toml whose measurement chose this row
+
+
+#: the construction plan "auto" runs; the first matching row wins, each naming the claim that
+#: justifies it. A CPU pays per operation inside a loop, so its plan branches only on steps
+#: where some ant needs the whole-row fallback (construction then keeps ACOTSP's time per
+#: iteration); a GPU runs the kernel, one program per block of ants instead of a batched step
+#: per tour position; other accelerators the branch-free scan plan. The kernel needs candidate
+#: lists: without them a GPU runs "dense" (every scan plan then runs the same whole-row step)
+AUTO_PLANS: tuple[PlanRow, ...] = (
+    PlanRow("cpu", "lazy", "tsp-speed-core-eil51"),
+    PlanRow("gpu", "kernel", "tsp-gpu-kernel-pr1002-16384"),
+    PlanRow("*", "dense", "tsp-gpu-dense-over-backup-pr1002-4096"),
+)
+
+
+def auto_plan(backend: str | None = None) -> str:
+    """The plan of :data:`AUTO_PLANS` for ``backend`` (default: JAX's default backend)."""
     backend = jax.default_backend() if backend is None else backend
-    if backend == "cpu":
-        return True, 0, FALLBACK_ANTS
-    return False, 0, m
+    for row in AUTO_PLANS:
+        if row.backend in (backend, "*"):
+            return row.plan
+    raise AssertionError(f"AUTO_PLANS has no row for {backend}")
 
 
 def kernel_compiles_here() -> bool:
     """Whether the construction kernel compiles natively on this backend (a GPU, as Triton);
-    elsewhere it runs in Pallas' interpreter, so "auto" does not pick it."""
+    elsewhere it runs in Pallas' interpreter (slowly: for tests)."""
     return jax.default_backend() == "gpu"
 
 
@@ -347,7 +366,7 @@ def construct_tours(
         all tabu moves to the allowed node of largest weight (as ACOTSP does); the cost of a
         step drops from O(m n) sampling to O(m k). Without them Eq. 2 runs over all n nodes.
       fallback: how that whole-row search runs (static; every plan builds the same tours):
-        "auto" ("kernel" on a GPU with candidate lists, else :func:`fallback_plan`), "lazy"
+        "auto" (the backend's row of :data:`AUTO_PLANS`), "lazy"
         (a branch on steps where some ant needs it, compacting up to FALLBACK_ANTS ants),
         "dense" (every ant's whole row on every step), "backup" (a backup list of the BACKUP
         heaviest nodes per row first, then the lazy compacted search for up to m // 16 ants),
@@ -365,6 +384,10 @@ def construct_tours(
         raise ValueError(f"weights must have a multiple of n={n} rows, got {weights.shape}")
     plans = {"lazy": (True, 0, FALLBACK_ANTS), "dense": (False, 0, m),
              "backup": (True, min(BACKUP, n - 1), max(8, m // 16))}
+    if fallback == "auto":
+        fallback = auto_plan()
+        if fallback == "kernel" and candidates is None:
+            fallback = "dense"  # the kernel needs candidate lists
     if fallback == "kernel":
         if candidates is None:
             raise ValueError('fallback="kernel" needs candidate lists (candidates=...)')
@@ -373,10 +396,6 @@ def construct_tours(
         plan = None
     elif fallback == "compact":
         plan = plans["dense"]  # without candidate lists every step searches whole rows
-    elif fallback == "auto" and candidates is not None and kernel_compiles_here():
-        plan = "kernel"
-    elif fallback == "auto":
-        plan = fallback_plan(m, n)
     elif fallback in plans:
         plan = plans[fallback]
     else:

@@ -1,8 +1,9 @@
 """Tour construction as ONE Pallas kernel: each program builds the whole tours of a block of ants.
 
 The scan plans of :mod:`eaco_jax.ops.construction` run one batched step per tour position:
-on a GPU each step is a dozen small kernels and ~50 us of launch and sync latency, which caps
-pr1002 near 0.6M tours/s whatever the colony. Here a program owns ``block`` ants and loops over
+on a GPU each step is a dozen small kernels, each with its launch and sync latency, which caps
+their tours per second however large the colony (claim ``tsp-gpu-scan-pr1002-65536``; this
+kernel: ``tsp-gpu-kernel-pr1002-16384``). Here a program owns ``block`` ants and loops over
 all tour positions itself, keeping each ant's current node in registers; per step and ant it
 reads the k candidates of its row and their choice info (one table, cached), one tabu word per
 candidate (the tabu set is a bit mask in global memory, an ant's 128 bytes for n = 1,002), its
@@ -13,11 +14,11 @@ candidates that are not tabu, else the first allowed node of the row's backup li
 allowed node of largest weight in the whole row (ACOTSP's rule), the first allowed node when
 all those weights are 0; the uniforms are the same draws. The fallbacks serve one pending ant
 at a time, its backup list or row spread over the program's threads, so they cost in
-proportion to the ants that need them (vectorised over the block they were 10-25x slower:
-``experiments/results/gpu/tsp_kernel_variants_h100.json``). The candidates' prefix sums are
+proportion to the ants that need them (vectorised over the block they were an order of
+magnitude slower: claim ``tsp-gpu-kernel-serial-over-tile``). The candidates' prefix sums are
 added one candidate after another here (the scan plans use a small matmul), so a sampled node
 could differ where a draw falls within a rounding step of a boundary; the tests find the
-tours of every other plan (CPU, and 4,096 pr1002 tours on an H100). Greedy choices, the
+tours of every other plan (on a CPU, and for 4,096 pr1002 tours on a GPU). Greedy choices, the
 backup lists and the whole-row rule are exact integer maxima and agree always.
 
 Runs as a Triton kernel on a GPU; elsewhere in Pallas' interpreter (slow: for tests).
@@ -35,9 +36,11 @@ from eaco_jax.ops.packed_keys import bit_allowed, id_bits, packed_keys
 
 Array = jax.Array
 
-#: ants per program (a power of 2 >= 16; one warp per 32 ants, one ant per thread): 32 was
-#: fastest at 4,096 ants of pr1002 on an H100, 2.7x 128 (results/gpu/tsp_kernel_variants_h100.json)
+#: ants per program (a power of 2 >= 16; one warp per 32 ants, one ant per thread), and the
+#: claim whose benchmark chose it (while a program serves one ant's fallback, the other ants of
+#: its block wait: fewer of them in a small block)
 BLOCK = 32
+BLOCK_CLAIM = "tsp-gpu-kernel-block32-over-128"
 
 
 def _any(x: Array) -> Array:
