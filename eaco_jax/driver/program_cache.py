@@ -2,13 +2,13 @@
 skips tracing.
 
 JAX's persistent compilation cache keeps the compiled executable, but every new process still
-traces and lowers the chunk before it can look the executable up: on an H100, 1.3 s of tracing
-and 0.8 s of lowering for a pcb442 colony with local search, against 0.7 s to load the cached
-executable (``experiments/startup_phases.py``). Here the first process also writes the traced
-chunk as a ``jax.export`` artifact; a later process with the same code, versions, device,
-strategy and shapes deserialises it (milliseconds), lowers the small wrapper and gets the
-executable from JAX's cache. The driver sends its two programs through :func:`compiled`: the
-chunk of iterations and the initialiser of the state.
+traces and lowers the chunk before it can look the executable up, which for a colony with local
+search takes longer than loading the executable (``experiments/startup_phases.py`` times the
+phases). Here the first process also writes the traced chunk as a ``jax.export`` artifact; a
+later process with the same code, versions, device, strategy and shapes deserialises it
+(milliseconds), lowers the small wrapper and gets the executable from JAX's cache. The driver
+sends its two programs through :func:`compiled`: the chunk of iterations and the initialiser
+of the state.
 
 On whenever JAX's persistent cache is (``jax_compilation_cache_dir``, as ``eaco`` sets it), in
 ``<that folder>/eaco_programs``; :func:`set_folder` chooses another folder or turns it off.

@@ -68,10 +68,9 @@ def mjx_model(spec: RobotSpec, slope_deg: float, accuracy: str, impl: str = "jax
         return _warp_model(model)
 
 
-#: Newton iterations on MuJoCo Warp. Measured on an H100 (experiments/warp_gait.py, solver
-#: section, 4,096 walking NAOs): 4 iterations (the fast setting) leave the torso 2.6 mm (mean,
-#: p95 12 mm) off the converged path after 1 s at 3.24M steps/s; 8 iterations 0.03 mm at
-#: 3.27M steps/s (most worlds converge early); 2 iterations are slower (2.33M) and 11 mm off.
+#: Newton iterations on MuJoCo Warp, at least: the fast setting (4) leaves a walking robot
+#: millimetres off the converged path within a second; 8 keep it on that path at the same steps
+#: per second, since most worlds converge early (``experiments/warp_gait.py``, solver section)
 WARP_ITERATIONS = 8
 
 
@@ -110,7 +109,7 @@ def contact_capacity(model) -> tuple[int, int]:
     and friction-loss dof. Exact bounds, not estimates: the buffers cost time in proportion
     to their size (MuJoCo Warp launches its constraint kernels over ``njmax`` rows), so they
     are no larger than the model can fill (the NAO: 8 sole spheres -> 8 contacts, 57 rows;
-    measured on native MuJoCo over random gaits, falls included: at most 8 and 34).
+    native MuJoCo over random gaits, falls included, stays within both).
     """
     import numpy as np_
 

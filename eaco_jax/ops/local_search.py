@@ -16,7 +16,7 @@ One step on one tour:
    commute and their gains add, so all are applied in ONE O(n) pass of index arithmetic
    (``tour[p] <- tour[lo + hi - p]`` inside each accepted ``[lo, hi]``, found by prefix sums).
    ``moves_per_step=1`` is classic best-improvement 2-opt; the batch cuts the number of
-   steps (the vmapped loop runs as long as its slowest ant) about 2-3x at the same quality.
+   steps (the vmapped loop runs as long as its slowest ant).
 
 With ``or_opt=True`` ("Or-2opt") each city also proposes its best Or-opt move (a segment of
 1-3 cities with the city at one end, moved next to one of its candidates, either

@@ -3,12 +3,12 @@ compiled to native code with numba, called from inside the jitted colony step on
 
 Why: ACOTSP's search is sequential - one city, one candidate scan, one move at a time. As a
 ``lax.while_loop`` on XLA's CPU backend each of those tiny iterations pays a fixed cost of a
-few dozen operations' dispatch, so 85-90 % of a CPU iteration went into local search and
-ACOTSP ran ~50x our local searches per second on pcb442 (experiments/results/
-tsp_ls_choice_pcb442_cpu_10s.json). Compiled to machine code the same search runs 13-22x
-faster on one core (``experiments/local_search_native_speed.py``). (On a GPU the XLA loop
-stays: there thousands of tours run side by side.) The same precedent as the gait rollouts:
-native MuJoCo on a CPU, MJX on a GPU.
+few dozen operations' dispatch, so local search took most of a CPU iteration; compiled to
+machine code the same search runs an order of magnitude faster on one core
+(``experiments/local_search_native_speed.py`` times both), and the CPU colony keeps up with
+ACOTSP at equal time (claims ``tsp-cpu-pcb442-10s``, ``acotsp-cpu-pcb442-10s``). (On a GPU
+the XLA loop stays: there thousands of tours run side by side.) The same precedent as the gait
+rollouts: native MuJoCo on a CPU, MJX on a GPU.
 
 The search is the very one of :func:`eaco_jax.ops.local_search._dlb_one` - same city order,
 same candidate scans, same float32 gains, same moves applied to the same array positions - so

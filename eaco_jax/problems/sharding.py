@@ -7,8 +7,9 @@ ant, say) is what needs several accelerators. :class:`Sharded` wraps any problem
 rollout there and gathers the results for ``tell``. The wrapped problem is still a pytree
 problem, so ``minimize`` runs it inside the same jitted ``lax.scan``.
 
-(An explicit ``jax.shard_map`` of the MJX rollout segfaulted on 2 H200s under jax 0.11.2;
-the sharding-constraint form ran there: see ``experiments/multi_device_gait.py``.)
+(It constrains the sharding rather than running an explicit ``jax.shard_map`` of the MJX
+rollout, which crashed on two GPUs under jax 0.11.2; the constraint form runs there: claim
+``gait-two-gpu-speedup``.)
 """
 
 from __future__ import annotations

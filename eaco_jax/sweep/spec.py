@@ -43,8 +43,8 @@ RANDOM_KEYS = {"n", "seed", "space"}
 MAX_CELLS = 100_000
 #: most seeds of one sweep: each cell's seeds are rows of one vmapped call
 MAX_SEEDS = 2**16
-#: host memory one vmapped row costs besides its colony state (keys, arrays, table rows):
-#: measured on a CPU: 21-33 kB a row (peak RSS) for 4,096-65,536 seeds of burma14, 4 ants
+#: host memory one vmapped row costs besides its colony state (keys, arrays, table rows): an
+#: upper bound of the peak resident memory per row of large many-seed sweeps on a CPU
 HOST_ROW_BYTES = 32 * 1024
 #: most nodes a sweep file may expand to (every use of an alias counted)
 MAX_YAML_NODES = 2_000_000
