@@ -52,8 +52,11 @@ def _quat_mat(q: np.ndarray) -> np.ndarray:
     ])
 
 
-def extract_chain(model, root_body: str, foot: str) -> tuple[LegChain, tuple[str, ...]]:
-    """The chain of hinge joints from ``root_body`` to ``foot`` (a body or site name).
+def extract_chain(
+    model, root_body: str, foot: str, point: np.ndarray | None = None
+) -> tuple[LegChain, tuple[str, ...]]:
+    """The chain of hinge joints from ``root_body`` to ``foot`` (a body or site name; for a body,
+    ``point`` in its frame is the foot point, default its origin).
 
     Returns the chain (float32 arrays, torso frame = ``root_body``'s frame) and its joint names
     from the torso down. A foot that is not below the root body, a non-hinge joint on the way or
@@ -71,7 +74,8 @@ def extract_chain(model, root_body: str, foot: str) -> tuple[LegChain, tuple[str
         if body < 0:
             raise ProblemError(f"leg foot {foot!r} is neither a body nor a site of the MJCF; "
                                "name a foot body or site of the model")
-        end_p, end_r = np.zeros(3), np.eye(3)
+        end_p = np.zeros(3) if point is None else np.asarray(point, np.float64)
+        end_r = np.eye(3)
     root = mujoco.mj_name2id(model, obj.mjOBJ_BODY, root_body)
     if root < 0:
         raise ProblemError(f"torso body {root_body!r} is not a body of the MJCF; name one")

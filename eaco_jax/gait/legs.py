@@ -9,7 +9,7 @@ x or y axis is the hip/ankle roll/pitch), so the walk engine's joint-space compe
 to any humanoid leg with the usual yaw-roll-pitch | pitch | pitch-roll layout or a subset.
 
 The feet are the spec's ``feet`` (body or site names) where it has them, else the bodies that
-carry its ``foot_geoms``, in their first-appearance order.
+carry its ``foot_geoms``, in their first-appearance order (:func:`foot_names`).
 """
 
 from __future__ import annotations
@@ -45,17 +45,20 @@ class LegSet(NamedTuple):
     stand_height: float  # mean vertical distance hip point -> foot point, standing
 
 
-def foot_names(spec, model) -> tuple[str, ...]:
-    """The spec's feet: its ``feet`` field, else the bodies of its ``foot_geoms``."""
+def foot_names(spec, model) -> tuple[tuple[str, np.ndarray | None], ...]:
+    """The spec's feet as ``(body or site, point in a body's frame or None)``: its ``feet``
+    field, else the bodies of its ``foot_geoms``, each with the point on the body's z axis at
+    the height of its foot geoms' centroid (below the ankle for a sole, the sphere of a point
+    foot), so a foot yaw about the vertical does not move the point."""
     feet = tuple(getattr(spec, "feet", ()) or ())
     if feet:
-        return feet
-    out: list[str] = []
+        return tuple((f, None) for f in feet)
+    bodies: dict[str, list[np.ndarray]] = {}
     for g in spec.foot_geoms:
-        body = model.body(int(model.geom(g).bodyid[0])).name
-        if body not in out:
-            out.append(body)
-    return tuple(out)
+        geom = model.geom(g)
+        bodies.setdefault(model.body(int(geom.bodyid[0])).name, []).append(geom.pos)
+    return tuple((b, np.array([0.0, 0.0, float(np.mean(np.asarray(ps)[:, 2]))]))
+                 for b, ps in bodies.items())
 
 
 @functools.lru_cache(maxsize=16)
@@ -64,10 +67,11 @@ def leg_set(spec) -> LegSet:
     import mujoco
 
     model = mujoco.MjModel.from_xml_path(spec.xml_path)
-    feet = foot_names(spec, model)
+    found = foot_names(spec, model)
+    feet = tuple(f for f, _ in found)
     chains, names = [], []
-    for foot in feet:
-        chain, joints = extract_chain(model, spec.torso_body, foot)
+    for foot, point in found:
+        chain, joints = extract_chain(model, spec.torso_body, foot, point)
         missing = [j for j in joints if j not in spec.joint_names]
         if missing:
             raise ProblemError(f"leg to {foot!r}: joint {missing[0]!r} has no actuator in the "
