@@ -125,11 +125,6 @@ def motor_model(spec) -> MotorModel | None:
     return MotorModel(*(np.asarray(consts[k], np.float64) for k in KEYS))
 
 
-def torque_cap_in_sim(spec) -> bool:
-    """Whether the spec asks the simulation to cap the net torque at the current limit."""
-    return bool(spec_json(spec).get("motors", {}).get("torque_cap_in_sim", False))
-
-
 # ----------------------------------------------------------------------------- electrical
 def current(tau, qdot, mm: MotorModel, xp=jnp):
     """Motor current (A, signed like ``tau``): gear efficiency divides when driving and
@@ -268,4 +263,4 @@ def minutes_to_limit(power, ripple, mm: MotorModel, xp=jnp, iters: int = 60):
 __all__ = ["BLOCKS", "KEYS", "MotorModel", "advance", "copper_loss", "current",
            "electrical_constants", "electrical_power", "minutes_to_limit", "modes",
            "motor_model", "ripple_bound", "steady_state", "step_response", "temperatures",
-           "torque_cap", "torque_cap_in_sim"]
+           "torque_cap"]

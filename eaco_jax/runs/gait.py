@@ -460,6 +460,23 @@ def trials_line(trials: dict[str, Any]) -> str:
             "(mean, 95% CI)")
 
 
+def motors_line(q: dict[str, Any]) -> str:
+    """One line on the motors: the first joint to reach the firmware limit in continuous
+    walking (or none), the hottest steady state, peak current against the limit, electrical
+    energy and CoT."""
+    table = q["motors"]
+    hot = min(table, key=lambda j: table[j]["endurance_min"] if table[j]["endurance_min"]
+              is not None else float("inf"))
+    first = table[hot]["endurance_min"]
+    when = (f"{hot} reaches the firmware limit after {first:.1f} min" if first is not None
+            else "no joint reaches the firmware limit")
+    steady = max(table, key=lambda j: table[j]["winding_steady_c"])
+    return (f"motors: {when}; hottest steady state {steady} "
+            f"{table[steady]['winding_steady_c']:.0f} C; peak current "
+            f"{q['peak_current_max_frac']:.2f} x limit; electrical "
+            f"{q['electrical_energy_j']:.0f} J, CoT {q['electrical_cot']:.2f}")
+
+
 def summary(record: dict[str, Any]) -> str:
     """The run in one line, then the trials (``--trials``) and the exported file
     (``--export``) if there are any."""
@@ -477,6 +494,9 @@ def summary(record: dict[str, Any]) -> str:
                 f"{fell}, drift {record['drift_deg']:.1f} deg, fitness "
                 f"{record['fitness']:.3f}{energy}")
     lines = [line]
+    q = record.get("quality") or {}
+    if "motors" in q:
+        lines.append(motors_line(q))
     if record.get("trials"):
         lines.append(trials_line(record["trials"]))
     if record.get("export"):
