@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from eaco_jax.errors import ProblemError
+from eaco_jax.errors import CheckpointError, ProblemError
 from eaco_jax.gait.render import ensure_headless_gl
 from eaco_jax.runs.base import (
     Built,
@@ -75,9 +75,38 @@ METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_
 LEG_PITCH_JOINTS = ("HipPitch", "KneePitch", "AnklePitch")  # not HipYawPitch
 
 
+ROBOT_HELP = ("robot: nao (humanoid), ant (quadruped), op3, go2, or the path of a robot spec "
+              ".json (docs/robots.md)")
+
+
+def absolute_spec(robot: str | None) -> str | None:
+    """A robot given as a spec path, made absolute (a checkpoint resumes from any folder); a
+    shipped robot's name as it is."""
+    if robot is None or not (robot.endswith(".json") or "/" in robot or "\\" in robot):
+        return robot
+    return str(Path(robot).expanduser().absolute())
+
+
+def pin_robot(checkpointing: Any, spec: Any) -> None:
+    """Record the robot spec (path and sha256 of spec + MJCF) in a checkpoint's run info; a
+    resumed run whose spec changed since is refused in one line."""
+    if checkpointing is None:
+        return
+    info = checkpointing.run_info
+    now = {"path": spec.source, "sha256": spec.digest}
+    stored = info.get("robot_spec")
+    if stored is None:
+        info["robot_spec"] = now
+    elif stored.get("sha256") != spec.digest:
+        raise CheckpointError(
+            f"the robot spec {spec.source} (or its MJCF) changed since this checkpoint was "
+            f"written (sha256 {str(stored.get('sha256'))[:12]} then, {spec.digest[:12]} now); "
+            "restore that spec, or start a new run without --checkpoint-dir")
+
+
 @dataclasses.dataclass(frozen=True)
 class GaitSettings:
-    robot: str = setting("nao", "robot: nao (humanoid) or ant (quadruped)")
+    robot: str = setting("nao", ROBOT_HELP)
     backend: str = setting("auto", "physics: native (MuJoCo C, CPU default), mjx (GPU default) "
                            "or auto", choices=BACKENDS)
     ants: int = setting(16, "colony size (gaits simulated per iteration)")
@@ -110,13 +139,14 @@ class GaitSettings:
     def __post_init__(self) -> None:
         check_settings(self, "ants", "iterations", "max_evaluations")
         _check_robust(self.robust, self.trials, self.penalty)
+        object.__setattr__(self, "robot", absolute_spec(self.robot))
 
 
 @dataclasses.dataclass(frozen=True)
 class GaitEvalSettings:
     params_file: str = setting("best_gait.json", "a stored gait (best_gait.json of `eaco gait`)",
                                positional=True, metavar="PARAMS.json")
-    robot: str | None = setting(None, "robot (default: the file's)")
+    robot: str | None = setting(None, "robot name or spec .json (default: the file's)")
     backend: str = setting("auto", "native, mjx or auto", choices=BACKENDS)
     horizon: float | None = setting(None, "seconds to simulate (default: the file's, else 20)")
     out: str | None = setting(None, "folder for gait_eval.json, joint_angles.png and the video")
@@ -133,6 +163,7 @@ class GaitEvalSettings:
     def __post_init__(self) -> None:
         check_settings(self)
         _check_robust(0, self.trials, None)
+        object.__setattr__(self, "robot", absolute_spec(self.robot))
 
 
 # --------------------------------------------------------------------------- parameter files
@@ -261,6 +292,9 @@ def _setting(problem: Any) -> dict[str, Any]:
     """The simulated setting shared by the gait and gait-eval records."""
     out = {"robot": problem.spec.name, "backend": problem.backend, "horizon": problem.horizon,
            "direction": problem.direction_deg, "slope": problem.slope_deg}
+    if not problem.spec.builtin:  # a spec of the user's: what finds it again (gait-eval)
+        out["robot_spec"] = problem.spec.source
+        out["robot_sha256"] = problem.spec.digest
     if problem.turn is not None:
         out["turn"] = problem.turn
     return out
@@ -328,6 +362,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     check_out(s.out)
     built = build(s)
     problem = built.extra["full_problem"]
+    pin_robot(checkpointing, problem.spec)
     t0 = time.perf_counter()
     result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
                       checkpointing=checkpointing, params=built.params, **built.budget)
@@ -384,7 +419,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
 # --------------------------------------------------------------------------- gait-eval
 def build_eval(s: GaitEvalSettings) -> Built:
     data = read_params_file(s.params_file)
-    robot = s.robot or _stored(data, "robot") or "nao"
+    robot = s.robot or _stored(data, "robot_spec", "robot") or "nao"
     horizon = s.horizon
     if horizon is None:
         horizon = float(_stored(data, "horizon", "verify_horizon") or EVAL_HORIZON)
