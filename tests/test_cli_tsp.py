@@ -97,6 +97,32 @@ def test_setting_choices_are_the_strategys():
     assert choices["mutation"] == ("auto", *graph_eaco.MUTATIONS)
 
 
+def test_auto_help_is_read_from_the_colony_table():
+    """--help says what 'auto' resolves to from COLONY_DEFAULTS itself (every row, the
+    short-budget one included), so the help cannot drift from the table."""
+    import dataclasses
+
+    from eaco_jax.runs import tsp
+
+    helps = {f.name: f.metadata["help"] for f in dataclasses.fields(tsp.TspSettings)}
+    assert ("auto: 50 on a CPU; on a GPU 768 below 700 cities, 384 below 1,500 cities (256 "
+            "with --max-seconds 5 or less), else 96;") in helps["ants"]
+    assert helps["local_search"].endswith(
+        "auto: 2opt+oropt on a CPU; on a GPU 2opt below 8 cities, else or-2opt)")
+    assert helps["ls_best_k"].endswith("(auto: the 25 best on a CPU; every tour on a GPU)")
+    assert helps["ls_neighbors"].endswith("(auto: all on a CPU; on a GPU 16 below 700 cities, "
+                                          "else all (8 for 700-1,499 cities with "
+                                          "--max-seconds 5 or less))")
+    assert helps["preset"].endswith("auto: mmas on a CPU; on a GPU default below 700 cities, "
+                                    "else mmas")
+    colony = tsp.ColonyDefaults(10, "2opt", None, "mmas")
+    rows = (tsp.ColonyRow("cpu", 0, None, None, colony, "x"),
+            tsp.ColonyRow("gpu", 0, None, 2.0, dataclasses.replace(colony, ants=30), "x"),
+            tsp.ColonyRow("gpu", 0, None, None, dataclasses.replace(colony, ants=20), "x"))
+    assert tsp.auto_help("ants", rows=rows) == \
+        "10 on a CPU; 20 (30 with --max-seconds 2 or less) on a GPU"
+
+
 def test_colony_defaults_by_backend(tmp_path):
     """--ants / --local-search / --ls-best-k / --preset left out: on a CPU (this machine) 50
     ants, don't-look-bit 2-opt + Or-opt on the 25 best, MMAS as ACOTSP runs it; on a GPU

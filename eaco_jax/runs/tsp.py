@@ -6,6 +6,7 @@ Outputs in ``out``: ``result.json``, ``history.csv``, ``convergence.png`` and ``
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,47 +28,6 @@ PARAMS_HELP = ("hyper-parameters and mechanism switches as KEY=VALUE,... (e.g. "
 
 
 @dataclasses.dataclass(frozen=True)
-class TspSettings:
-    instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
-                            positional=True, metavar="FILE_OR_NAME")
-    ants: int | None = setting(None, "colony size (default: 50 on a CPU; on a GPU 768 below "
-                               "700 cities, 384 below 1500 (256 with --max-seconds 5 or "
-                               "less), else 96: the best measured for a time budget)")
-    iterations: int = setting(300, "iterations")
-    seed: int = setting(0, "random seed")
-    local_search: str = setting("auto", "local search (2opt: best-improvement batches on the "
-                                "candidate lists; or-2opt: the same + Or-opt; 2opt-dlb, "
-                                "2opt+oropt: ACOTSP-style with don't-look bits, + Or-opt; "
-                                "auto: or-2opt on a GPU, 2opt+oropt on a CPU)",
-                                choices=("auto", "2opt", "or-2opt", "2opt-dlb", "2opt+oropt",
-                                         "none"))
-    ls_best_k: int | None = setting(None, "local search on the k shortest tours of each "
-                                    "iteration only (default: the 25 best on a CPU, every "
-                                    "tour on a GPU)")
-    ls_neighbors: int | None = setting(None, "candidates per city the local search scans "
-                                       "(default: all 20; on a GPU 16 below 700 cities, "
-                                       "8 for 700-1499 cities with --max-seconds 5 or less)")
-    crossover: str = setting("auto", "tour crossover ('auto': erx with local search, except "
-                             "in the mmas preset; else none)",
-                             choices=("auto", "erx", "pmx", "none"))
-    mutation: str = setting("auto", "tour mutation ('auto': inversion with local search)",
-                            choices=("auto", "inversion", "swap", "none"))
-    preset: str = setting("auto", "parameter set: default (evidence-based), mmas (as ACOTSP "
-                          "runs it), paper (Table 4, every paper mechanism on); auto: mmas on "
-                          "a CPU, on a GPU default below 700 cities and mmas from there",
-                          choices=("auto", "default", "mmas", "paper"))
-    max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
-                                          "--iterations)")
-    max_seconds: float | None = setting(None, "stop after this many compute seconds")
-    params: str | None = setting(None, PARAMS_HELP)
-    out: str | None = setting(None, "folder for result.json, history.csv and plots")
-
-    def __post_init__(self) -> None:
-        check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
-                       "ls_neighbors")
-
-
-@dataclasses.dataclass(frozen=True)
 class ColonyDefaults:
     """What ``auto`` settings of ``eaco tsp`` resolve to on a backend (see
     :func:`colony_defaults`)."""
@@ -80,7 +40,7 @@ class ColonyDefaults:
 
 
 #: on a GPU, a budget of at most this many seconds (after compilation) on 700-1,499 cities
-#: gets the short-budget colony (256 ants, local search on the 8 nearest candidates)
+#: gets the short-budget row of :data:`COLONY_DEFAULTS`
 SHORT_BUDGET_SECONDS = 5.0
 
 
@@ -118,6 +78,86 @@ COLONY_DEFAULTS: tuple[ColonyRow, ...] = (
     ColonyRow("gpu", 1500, None, None, ColonyDefaults(96, "or-2opt", None, "mmas"),
               "tsp-gpu-pr2392-30s-mmas"),
 )
+
+
+def _best(k: int | None) -> str:
+    return "every tour" if k is None else f"the {k} best"
+
+
+def _scanned(k: int | None) -> str:
+    return "all" if k is None else str(k)
+
+
+def auto_help(attr: str, show: Callable[[Any], str] = str,
+              rows: tuple[ColonyRow, ...] = COLONY_DEFAULTS) -> str:
+    """What ``auto`` resolves the :class:`ColonyDefaults` field ``attr`` to, in words, read
+    from the table (``--help`` prints it, so the help cannot drift from the table)."""
+    parts = []
+    for backend, where in (("cpu", "a CPU"), ("gpu", "a GPU")):
+        mine = [r for r in rows if r.backend == backend]
+        segments: list[list[Any]] = []  # [min_n, max_n, value], equal neighbours merged
+        for r in sorted((r for r in mine if r.max_seconds is None), key=lambda r: r.min_n):
+            value = getattr(r.colony, attr)
+            if segments and segments[-1][2] == value and segments[-1][1] == r.min_n:
+                segments[-1][1] = r.max_n
+            else:
+                segments.append([r.min_n, r.max_n, value])
+        pieces = [f"{show(v)} below {hi:,} cities" if hi is not None else
+                  (f"else {show(v)}" if len(segments) > 1 else show(v))
+                  for _, hi, v in segments]
+        for r in (r for r in mine if r.max_seconds is not None):
+            value = getattr(r.colony, attr)
+            i = next(i for i, (lo, hi, _) in enumerate(segments)
+                     if lo <= r.min_n and (hi is None or (r.max_n is not None and r.max_n <= hi)))
+            if value == segments[i][2]:
+                continue
+            lo, hi = segments[i][:2]
+            span = "" if (lo, hi) == (r.min_n, r.max_n) else \
+                f" for {r.min_n:,}-{r.max_n - 1:,} cities" if r.max_n is not None else \
+                f" from {r.min_n:,} cities"
+            pieces[i] += f" ({show(value)}{span} with --max-seconds {r.max_seconds:g} or less)"
+        parts.append(f"{pieces[0]} on {where}" if len(pieces) == 1 else
+                     f"on {where} {', '.join(pieces)}")
+    return "; ".join(parts)
+
+
+@dataclasses.dataclass(frozen=True)
+class TspSettings:
+    instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
+                            positional=True, metavar="FILE_OR_NAME")
+    ants: int | None = setting(None, f"colony size (auto: {auto_help('ants')}; chosen for "
+                               "the shortest tour within a time budget, docs/results.md)")
+    iterations: int = setting(300, "iterations")
+    seed: int = setting(0, "random seed")
+    local_search: str = setting("auto", "local search (2opt: best-improvement batches on the "
+                                "candidate lists; or-2opt: the same + Or-opt; 2opt-dlb, "
+                                "2opt+oropt: ACOTSP-style with don't-look bits, + Or-opt; "
+                                f"auto: {auto_help('local_search')})",
+                                choices=("auto", "2opt", "or-2opt", "2opt-dlb", "2opt+oropt",
+                                         "none"))
+    ls_best_k: int | None = setting(None, "local search on the k shortest tours of each "
+                                    f"iteration only (auto: {auto_help('ls_best_k', _best)})")
+    ls_neighbors: int | None = setting(None, "candidates per city the local search scans, of "
+                                       "each city's candidate list (auto: "
+                                       f"{auto_help('ls_neighbors', _scanned)})")
+    crossover: str = setting("auto", "tour crossover ('auto': erx with local search, except "
+                             "in the mmas preset; else none)",
+                             choices=("auto", "erx", "pmx", "none"))
+    mutation: str = setting("auto", "tour mutation ('auto': inversion with local search)",
+                            choices=("auto", "inversion", "swap", "none"))
+    preset: str = setting("auto", "parameter set: default (evidence-based), mmas (as ACOTSP "
+                          "runs it), paper (Table 4, every paper mechanism on); auto: "
+                          f"{auto_help('preset')}",
+                          choices=("auto", "default", "mmas", "paper"))
+    max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
+                                          "--iterations)")
+    max_seconds: float | None = setting(None, "stop after this many compute seconds")
+    params: str | None = setting(None, PARAMS_HELP)
+    out: str | None = setting(None, "folder for result.json, history.csv and plots")
+
+    def __post_init__(self) -> None:
+        check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
+                       "ls_neighbors")
 
 
 def colony_defaults(n: int, backend: str, seconds: float | None = None) -> ColonyDefaults:
