@@ -212,8 +212,7 @@ class GraphEACO(Strategy):
     candidate_lists: bool = True
     #: how the tours are built ("auto", "lazy", "dense", "backup", "compact", "kernel"; see
     #: construction.construct_tours): a cost choice only, every plan builds the same tours;
-    #: "auto" is the Pallas "kernel" on a GPU (the fastest there, claim
-    #: tsp-gpu-kernel-pr1002-16384), "lazy" on a CPU
+    #: "auto" is the backend's row of construction.AUTO_PLANS (each row names its claim)
     construction_fallback: str = "auto"
     #: named parameter set of :meth:`default_params` (:data:`PRESETS`); "paper" also turns
     #: ERX crossover and inversion mutation on without local search ("auto")
