@@ -310,6 +310,23 @@ def test_jax_options_read_while_tracing_are_in_the_key(cache, partitionable):
     assert program_cache.program_key(("x",)) != key
 
 
+@pytest.mark.parametrize("keep", ["_COMPILED", "_INITS"])
+def test_jax_options_key_the_programs_held_in_process(cache, partitionable, keep):
+    """Flipping a JAX option mid-process (no clear_compiled) traces the chunk and the
+    initialiser again: a run equals one started fresh with the option. ``keep`` is the
+    in-process cache left filled while the other is emptied, so each one's key is tested."""
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="none")
+    program_cache.set_folder(None)
+    default = _run(strategy, problem)
+    jax.config.update("jax_threefry_partitionable", False)
+    getattr(driver, "_INITS" if keep == "_COMPILED" else "_COMPILED").clear()
+    flipped = _run(strategy, problem)
+    driver.clear_compiled()
+    fresh = _run(strategy, problem)
+    assert fresh[0] != default[0]  # the option changes this run's answer
+    _same(flipped, fresh)
+
+
 def test_a_compile_cache_that_is_a_file_is_said_once(tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("x")

@@ -249,13 +249,13 @@ def _budget_arg(budget: int | None) -> jax.Array:
 def compiled_chunk(strategy: Strategy, length: int, batched: bool, problem: Any,
                    state: State, capped: bool = False,
                    interrupted: Callable[[], bool] | None = None) -> tuple[Any, float]:
-    """The compiled chunk for these shapes and static configuration, and the seconds spent
-    compiling it now (0.0 when it came from this process's cache).
+    """The compiled chunk for these shapes, static configuration and JAX options (those that
+    shape a trace), and the seconds spent compiling it now (0.0 from this process's cache).
 
     With ``interrupted`` (a poll), compilation runs in a worker thread and
     :class:`_Interrupt` is raised as soon as the poll says so.
     """
-    key = ("chunk", strategy, length, batched, capped, jax.config.jax_enable_x64,
+    key = ("chunk", strategy, length, batched, capped, program_cache.trace_flags(),
            _signature(problem), _signature(state))
     args = (problem, state, jnp.int32(length)) + ((_budget_arg(None),) if capped else ())
     return _program(_COMPILED, key, lambda: make_chunk_fn(strategy, length, batched, capped),
@@ -408,7 +408,7 @@ def _compiled_init(strategy: Strategy, rows: str, problem: Any, keys: jax.Array,
     and the seconds spent on it now (0.0 when this process had it):
     ``rows`` "one" (one seed, an unbatched state), "shared" (a row per key, one params) or
     "per_row" (a row per key and params row)."""
-    key = ("init", strategy, rows, jax.config.jax_enable_x64, _signature(problem),
+    key = ("init", strategy, rows, program_cache.trace_flags(), _signature(problem),
            _signature(keys), _signature(params))
 
     def init(keys, problem, params):
