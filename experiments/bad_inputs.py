@@ -54,6 +54,54 @@ def cli(*args: str) -> str:
     return f"exit {res.exit_code}: " + (lines[-1] if lines else "")
 
 
+def robot_spec_rows() -> None:
+    """Robot specs of a user's own (issue 31): the ant's MJCF and spec copied outside the repo."""
+    from eaco_jax.gait.robot import ROBOTS_DIR, load_robot
+    from eaco_jax.problems.gait import make_gait_problem
+
+    folder = TMP / "walker"
+    folder.mkdir(exist_ok=True)
+
+    def spec(**fields: object) -> str:
+        shutil.copy(load_robot("ant").xml_path, folder / "walker.xml")
+        raw = json.loads((ROBOTS_DIR / "ant.json").read_text())
+        raw.update(name="walker", xml="walker.xml", **fields)
+        (folder / "walker.json").write_text(json.dumps(raw))
+        return str(folder / "walker.json")
+
+    tiny = ["--backend", "native", "--ants", "4", "--iterations", "1", "--horizon", "0.5",
+            "--out", str(TMP / "walker_out")]
+    record("`eaco gait --robot robot.xml` (an MJCF, not a spec)", "CLI",
+           lambda: cli("gait", "--robot", str(folder / "robot.xml"), *tiny))
+    record("robot spec naming a joint the MJCF lacks", "file",
+           lambda: cli("gait", "--robot", spec(joint_names=["hip_9", *json.loads(
+               (ROBOTS_DIR / "ant.json").read_text())["joint_names"][1:]]), *tiny))
+    record("robot spec whose feet are above the hips (upside-down stand_root)", "file",
+           lambda: cli("gait", "--robot", spec(stand_root=[0, 0, 0.55, 0, 1, 0, 0]), *tiny))
+
+    def no_actuator() -> str:
+        path = spec()
+        xml = folder / "walker.xml"
+        text = xml.read_text()
+        line = next(ln for ln in text.splitlines() if "<motor" in ln and "hip_1" in ln)
+        xml.write_text(text.replace(line, ""))
+        return cli("gait", "--robot", path, *tiny)
+    record("robot spec whose MJCF has no actuator for a joint", "file", no_actuator)
+    record("robot spec with gait `hexapod`", "file",
+           lambda: cli("gait", "--robot", spec(gait="hexapod"), *tiny))
+    record("`make_gait_problem(robot=spec)` with `control_dt: \"fast\"`", "API",
+           lambda: make_gait_problem(robot=spec(control_dt="fast"), backend="native"))
+
+    def resume_changed() -> str:
+        path, ckpt = spec(), TMP / "walker_ckpt"
+        cli("gait", "--robot", path, *tiny, "--checkpoint-dir", str(ckpt),
+            "--checkpoint-every", "1")
+        xml = folder / "walker.xml"
+        xml.write_text(xml.read_text().replace('density="5.0"', 'density="6.0"', 1))
+        return cli("resume", str(ckpt))
+    record("`eaco resume` after the run's robot MJCF changed", "CLI", resume_changed)
+
+
 def write_tsp(name: str, body: str) -> str:
     path = TMP / name
     path.write_text(body)
@@ -336,6 +384,8 @@ def main() -> None:
     checkpoint_folder_rows(burma, g)
 
     first_hour_rows()
+
+    robot_spec_rows()
 
     lines = [
         "# Bad inputs and faults, and what each gets now",
