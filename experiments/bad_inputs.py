@@ -387,6 +387,8 @@ def main() -> None:
 
     robot_spec_rows()
 
+    limits_rows()
+
     lines = [
         "# Bad inputs and faults, and what each gets now",
         "",
@@ -418,6 +420,48 @@ def main() -> None:
     out.write_text("\n".join(lines))
     print(f"{len(ROWS) + 4} rows -> {out}")
 
+
+
+def limits_rows() -> None:
+    """Limits (issue 28, round three): horizons past the step clock, colonies whose iteration
+    does not fit, objectives that are +inf everywhere, 10,000 variables."""
+    from eaco_jax.driver.minimize import check_state_memory
+    from eaco_jax.runs import tsp as run_tsp
+    from eaco_jax.strategies.continuous_eaco import ContinuousEACO
+
+    gait = TMP / "zero_gait.json"
+    gait.write_text(json.dumps({"robot": "nao", "vector": [0.0] * 14}))
+    record("`eaco gait-eval G --horizon 1e9` (5e10 control steps)", "CLI",
+           lambda: cli("gait-eval", str(gait), "--backend", "native", "--horizon", "1e9"))
+
+    def tsp_200000() -> None:  # what minimize checks before it compiles anything
+        built = run_tsp.build(run_tsp.TspSettings(instance="pr1002", ants=200000))
+        check_state_memory(built.strategy, built.problem, 1, built.params)
+    record("`eaco tsp pr1002 --ants 200000` (local search on the 25 shortest tours; the check "
+           "minimize runs first)", "API", tsp_200000)
+    record("`eaco tsp pr1002 --ants 200000 --ls-best-k 200000` (local search on every tour)",
+           "CLI", lambda: cli("tsp", "pr1002", "--ants", "200000", "--ls-best-k", "200000"))
+    hungry = ConstrainedProblem(
+        lambda x: jnp.cumsum(jnp.broadcast_to(x[0], (2**20, 2**19)), axis=0)[-1, 0],
+        lower=[0.0, 0.0], upper=[1.0, 1.0], name="hungry")
+    record("an objective that allocates 16 TiB (XLA RESOURCE_EXHAUSTED inside the chunk)", "API",
+           lambda: ea.minimize(hungry, ContinuousEACO(num_ants=2, refine_ants=0), seed=0,
+                               iterations=1))
+
+    def all_inf() -> str:
+        p = ConstrainedProblem(lambda x: jnp.inf * (1.0 + x[0] ** 2), lower=[0.0, 0.0],
+                               upper=[1.0, 1.0], name="flat")
+        res = ea.minimize(p, seed=0, iterations=4)
+        return f"f={res.f} feasible={res.feasible}"
+    record("an objective that is +inf everywhere", "API", all_inf)
+
+    def wide() -> None:  # what minimize checks before it compiles anything
+        p = ConstrainedProblem(lambda x: jnp.sum(x ** 2), lower=[-1.0] * 10000,
+                               upper=[1.0] * 10000, name="wide")
+        s = ContinuousEACO()
+        check_state_memory(s, p, 1, s.default_params(p))
+    record("a 10,000-variable problem with the default ContinuousEACO (the check minimize "
+           "runs first)", "API", wide)
 
 
 def first_hour_rows() -> None:
@@ -503,6 +547,17 @@ def checkpoint_folder_rows(burma: object, g: object) -> None:
             os.fsync = real
     record("disk full during a save (ENOSPC injected at the history segment's fsync; a real "
            "full tmpfs in tests/test_checkpoint.py)", "API", disk_full)
+
+    # ------------------------------------------------------------ generic leg IK (gait)
+    from eaco_jax.gait import ik_generic, walk_engine
+    from eaco_jax.gait.robot import load_model, load_robot
+
+    record("a leg chain whose foot is not below the torso body (ik_generic.extract_chain)",
+           "API", lambda: ik_generic.extract_chain(load_model(load_robot("nao")), "l_foot",
+                                                   "r_foot"))
+    record("walk engine ik='analytic' for a robot without the NAO's leg geometry (op3)", "API",
+           lambda: walk_engine.joint_targets(jnp.zeros(14), jnp.float32(0.0),
+                                             load_robot("op3"), ik="analytic"))
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from eaco_jax.errors import ProblemError
+from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.gait import ik_generic as g
 from eaco_jax.gait import walk_engine as we
 from eaco_jax.gait.ik import leg_ik
@@ -167,7 +167,7 @@ def test_analytic_without_geometry_is_refused(tmp_path):
     path.write_text(json.dumps(raw))
     spec = load_robot(path)
     assert not we.uses_analytic_ik(spec)  # auto: the generic IK
-    with pytest.raises(Exception, match="use ik='generic'"):
+    with pytest.raises(ConfigError, match="use ik=.generic."):
         we.uses_analytic_ik(spec, "analytic")
     lo, hi = we.bounds(spec)  # lengths scale with the measured standing hip height
     h = leg_set(spec).stand_height
