@@ -70,3 +70,15 @@ def test_gradient_repair_reaches_feasibility():
     x_same, n0 = ch.gradient_repair(prob, x, 8, 0.0)  # feasible ants are left alone
     np.testing.assert_array_equal(x_same, x)
     assert int(n0) == 0
+
+
+def test_sqp_direction_is_one_newton_step_to_the_kkt_point():
+    """A quadratic objective on a line (h = x0 + x1 - 1) is solved by one step, from a point
+    where the inequality x1 <= 0.5 is near (active set) but pulls the wrong way (negative
+    multiplier: dropped); the optimum is (2, 1) projected on the line, (1, 0)."""
+    prob = ConstrainedProblem(
+        lambda x: (x[0] - 2.0) ** 2 + (x[1] - 1.0) ** 2, lambda x: jnp.stack([x[1] - 0.5]),
+        lambda x: jnp.stack([x[0] + x[1] - 1.0]), lower=[-5.0, -5.0], upper=[5.0, 5.0])
+    x0 = jnp.array([0.3, 0.49])
+    d = ch.sqp_direction(prob, x0, active_frac=0.05, margin_frac=0.0)
+    np.testing.assert_allclose(np.asarray(x0 + d), [1.0, 0.0], atol=1e-5)

@@ -10,6 +10,11 @@ with them under ``jit``/``vmap``:
   epsilon count as zero, then Deb's rules; epsilon shrinks to 0 on a schedule
   (:func:`epsilon_schedule`).
 
+Two operators move one point with the constraints' derivatives (autodiff):
+:func:`gradient_repair` (Newton steps onto the violated constraints) and :func:`sqp_direction`
+(a Newton step on the KKT conditions of the active constraints, the continuous strategy's local
+refinement).
+
 Violation is the CEC2006 total (see :func:`eaco_jax.problems.constrained.violation_of`:
 inequality excess plus equality excess beyond |h| <= 1e-4), so ``violation == 0`` is feasible.
 """
@@ -136,3 +141,72 @@ def gradient_repair(problem: object, x: Array, steps: int, margin: Array,
         return y, n + todo.astype(jnp.int32)
 
     return jax.lax.fori_loop(0, steps, body, (x, jnp.zeros((), jnp.int32)))
+
+
+# --------------------------------------------------------------------------- SQP refinement
+def sqp_direction(problem: object, x: Array, active_frac: Array,
+                  margin_frac: Array) -> Array:
+    """Newton (SQP) step on the KKT conditions of the constraints active at ``x``.
+
+    Active set: all equalities, inequalities and box bounds within ``active_frac`` of the mean
+    box width (first-order distance |c| / |grad c|), minus inequalities whose least-squares
+    multiplier is negative. With ``J`` their Jacobian, ``P`` the projector on its null space and
+    ``H`` the Lagrangian Hessian, the step is ``d = d_r + P z`` where ``d_r = -J^+ c`` restores
+    the active constraints (min-norm, via the row-normalised normal equations) and ``z``
+    solves the reduced Newton system ``P H P z = -P (grad f + H d_r)`` with negative curvature
+    flipped (|eigenvalues|) so it is a descent step.
+    """
+    n = problem.dim
+    dtype = x.dtype
+    eye = jnp.eye(n, dtype=dtype)
+    lo, hi = problem.lower, problem.upper
+    scale = jnp.mean(hi - lo)
+    gf = jax.grad(lambda y: jnp.asarray(problem.objective(y), dtype).reshape(()))(x)
+    hf = jax.hessian(lambda y: jnp.asarray(problem.objective(y), dtype).reshape(()))(x)
+    g, h = problem.constraints(x)
+    jg, jh = jax.jacobian(problem.constraints)(x)
+    hg, hh = jax.hessian(problem.constraints)(x)
+    ng = jnp.linalg.norm(jg, axis=1)
+    p, q = problem.num_inequality, problem.num_equality
+    c = jnp.concatenate([g + margin_frac * scale * ng, h, x - hi, lo - x])
+    jac = jnp.concatenate([jg, jh, eye, -eye], axis=0)
+    raw = jnp.concatenate([g, h, x - hi, lo - x])
+    norms = jnp.linalg.norm(jac, axis=1)
+    is_eq = jnp.concatenate([jnp.zeros(p, bool), jnp.ones(q, bool), jnp.zeros(2 * n, bool)])
+    near = raw >= -active_frac * scale * jnp.maximum(norms, 1e-30)
+    near = near & (norms > 0)
+    # a variable cannot sit on both bounds: keep the nearer one (fixed variables have lo == hi)
+    up_closer = (hi - x) <= (x - lo)
+    near = near.at[p + q: p + q + n].set(near[p + q: p + q + n] & up_closer)
+    near = near.at[p + q + n:].set(near[p + q + n:] & ~up_closer)
+    active0 = is_eq | near
+
+    def normal_matrix(active: Array) -> tuple[Array, Array, Array]:
+        """Row-normalised active Jacobian ``jn``, the row scales, and (jn jn^T + ridge)^-1."""
+        inv = jnp.where(active, 1.0 / jnp.maximum(norms, 1e-300), 0.0)
+        jn = jac * inv[:, None]
+        gram = jn @ jn.T + 1e-12 * jnp.eye(jac.shape[0], dtype=dtype)
+        gram = gram + jnp.diag(jnp.where(active, 0.0, 1.0))
+        return jn, inv, jnp.linalg.inv(gram)
+
+    # least-squares multipliers: grad f + J^T lam = 0  ->  lam = -(J J^T)^-1 J grad f
+    jn, inv, ginv = normal_matrix(active0)
+    lam0 = -(ginv @ (jn @ gf)) * inv
+    active = active0 & (is_eq | (lam0 >= 0))
+    jn, inv, ginv = normal_matrix(active)
+    lam = jnp.where(active, -(ginv @ (jn @ gf)) * inv, 0.0)
+    hl = hf
+    if p:
+        hl = hl + jnp.einsum("i,ijk->jk", lam[:p], hg)
+    if q:
+        hl = hl + jnp.einsum("i,ijk->jk", lam[p:p + q], hh)
+    proj = eye - jn.T @ ginv @ jn
+    d_r = -jn.T @ (ginv @ (c * inv))
+    rhs = -proj @ (gf + hl @ d_r)
+    mat = proj @ hl @ proj + (eye - proj)
+    mat = 0.5 * (mat + mat.T)
+    w, vecs = jnp.linalg.eigh(mat)
+    floor = 1e-10 * jnp.max(jnp.abs(w)) + jnp.finfo(dtype).tiny
+    z = vecs @ ((vecs.T @ rhs) / jnp.maximum(jnp.abs(w), floor))
+    d = d_r + proj @ z
+    return jnp.where(jnp.all(jnp.isfinite(d)), d, jnp.zeros_like(d))

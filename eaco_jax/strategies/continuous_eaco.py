@@ -17,10 +17,12 @@ Our reading of the paper for real vectors (PAPER_NOTES.md section 2):
   ``best + chaos_strength * (2z - 1) * (upper - lower)`` to escape stagnation.
 * **Elitist**: the archive is the best ``k`` of archive + colony, so the best always survive.
 * **Gradient repair** (``repair_steps``): infeasible ants take Newton steps on their violated
-  constraints, with Jacobians from ``jax.jacobian`` (:func:`eaco_jax.constraints.gradient_repair`).
+  constraints, with Jacobians from ``jax.jacobian``
+  (:func:`eaco_jax.ops.constraints.gradient_repair`).
 * **Local refinement** (``refine_ants``): the last ants of each colony are SQP-style steps from
   the archive's best (Newton on the KKT conditions of its active constraints, with the
-  Lagrangian Hessian from autodiff, at step lengths 1, 1/4, 1/16, ...). They are ordinary ants:
+  Lagrangian Hessian from autodiff, at step lengths 1, 1/4, 1/16, ...;
+  :func:`eaco_jax.ops.constraints.sqp_direction`). They are ordinary ants:
   evaluated by the driver and kept only if the archive order says they are better.
 * Bounds are exact: every ant is clipped to ``[lower, upper]`` after every operator.
 
@@ -62,7 +64,6 @@ from eaco_jax.ops import constraints as ch
 from eaco_jax.ops.chaos import logistic_step
 from eaco_jax.ops.real_ops import laplace_crossover_sample, power_mutation_sample
 from eaco_jax.problems.base import Evaluation
-from eaco_jax.problems.constrained import ConstrainedProblem
 from eaco_jax.strategies.base import (
     AT_LEAST_ONE,
     NONNEG,
@@ -307,7 +308,7 @@ class ContinuousEACO(Strategy):
         fd = fdf = jnp.zeros((), jnp.int32)  # finite-difference costs (module docstring)
         # local refinement: SQP-style steps from the archive's best as the last ants
         if self.refine_ants > 0:
-            d = sqp_direction(problem, arch[0], p.refine_active, p.repair_margin)
+            d = ch.sqp_direction(problem, arch[0], p.refine_active, p.repair_margin)
             alpha = 0.25 ** jnp.arange(self.refine_ants, dtype=dtype)
             cand = jnp.clip(arch[0][None, :] + alpha[:, None] * d[None, :], lo, hi)
             x = x.at[m - self.refine_ants:].set(cand)
@@ -462,72 +463,3 @@ class ContinuousEACO(Strategy):
 
 def _num_constraints(problem: Any) -> int:
     return int(getattr(problem, "num_inequality", 0)) + int(getattr(problem, "num_equality", 0))
-
-
-# --------------------------------------------------------------------------- refinement
-def sqp_direction(problem: ConstrainedProblem, x: Array, active_frac: Array,
-                  margin_frac: Array) -> Array:
-    """Newton (SQP) step on the KKT conditions of the constraints active at ``x``.
-
-    Active set: all equalities, inequalities and box bounds within ``active_frac`` of the mean
-    box width (first-order distance |c| / |grad c|), minus inequalities whose least-squares
-    multiplier is negative. With ``J`` their Jacobian, ``P`` the projector on its null space and
-    ``H`` the Lagrangian Hessian, the step is ``d = d_r + P z`` where ``d_r = -J^+ c`` restores
-    the active constraints (min-norm, via the row-normalised normal equations) and ``z``
-    solves the reduced Newton system ``P H P z = -P (grad f + H d_r)`` with negative curvature
-    flipped (|eigenvalues|) so it is a descent step.
-    """
-    n = problem.dim
-    dtype = x.dtype
-    eye = jnp.eye(n, dtype=dtype)
-    lo, hi = problem.lower, problem.upper
-    scale = jnp.mean(hi - lo)
-    gf = jax.grad(lambda y: jnp.asarray(problem.objective(y), dtype).reshape(()))(x)
-    hf = jax.hessian(lambda y: jnp.asarray(problem.objective(y), dtype).reshape(()))(x)
-    g, h = problem.constraints(x)
-    jg, jh = jax.jacobian(problem.constraints)(x)
-    hg, hh = jax.hessian(problem.constraints)(x)
-    ng = jnp.linalg.norm(jg, axis=1)
-    p, q = problem.num_inequality, problem.num_equality
-    c = jnp.concatenate([g + margin_frac * scale * ng, h, x - hi, lo - x])
-    jac = jnp.concatenate([jg, jh, eye, -eye], axis=0)
-    raw = jnp.concatenate([g, h, x - hi, lo - x])
-    norms = jnp.linalg.norm(jac, axis=1)
-    is_eq = jnp.concatenate([jnp.zeros(p, bool), jnp.ones(q, bool), jnp.zeros(2 * n, bool)])
-    near = raw >= -active_frac * scale * jnp.maximum(norms, 1e-30)
-    near = near & (norms > 0)
-    # a variable cannot sit on both bounds: keep the nearer one (fixed variables have lo == hi)
-    up_closer = (hi - x) <= (x - lo)
-    near = near.at[p + q: p + q + n].set(near[p + q: p + q + n] & up_closer)
-    near = near.at[p + q + n:].set(near[p + q + n:] & ~up_closer)
-    active0 = is_eq | near
-
-    def normal_matrix(active: Array) -> tuple[Array, Array, Array]:
-        """Row-normalised active Jacobian ``jn``, the row scales, and (jn jn^T + ridge)^-1."""
-        inv = jnp.where(active, 1.0 / jnp.maximum(norms, 1e-300), 0.0)
-        jn = jac * inv[:, None]
-        gram = jn @ jn.T + 1e-12 * jnp.eye(jac.shape[0], dtype=dtype)
-        gram = gram + jnp.diag(jnp.where(active, 0.0, 1.0))
-        return jn, inv, jnp.linalg.inv(gram)
-
-    # least-squares multipliers: grad f + J^T lam = 0  ->  lam = -(J J^T)^-1 J grad f
-    jn, inv, ginv = normal_matrix(active0)
-    lam0 = -(ginv @ (jn @ gf)) * inv
-    active = active0 & (is_eq | (lam0 >= 0))
-    jn, inv, ginv = normal_matrix(active)
-    lam = jnp.where(active, -(ginv @ (jn @ gf)) * inv, 0.0)
-    hl = hf
-    if p:
-        hl = hl + jnp.einsum("i,ijk->jk", lam[:p], hg)
-    if q:
-        hl = hl + jnp.einsum("i,ijk->jk", lam[p:p + q], hh)
-    proj = eye - jn.T @ ginv @ jn
-    d_r = -jn.T @ (ginv @ (c * inv))
-    rhs = -proj @ (gf + hl @ d_r)
-    mat = proj @ hl @ proj + (eye - proj)
-    mat = 0.5 * (mat + mat.T)
-    w, vecs = jnp.linalg.eigh(mat)
-    floor = 1e-10 * jnp.max(jnp.abs(w)) + jnp.finfo(dtype).tiny
-    z = vecs @ ((vecs.T @ rhs) / jnp.maximum(jnp.abs(w), floor))
-    d = d_r + proj @ z
-    return jnp.where(jnp.all(jnp.isfinite(d)), d, jnp.zeros_like(d))
