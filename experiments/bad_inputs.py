@@ -389,6 +389,8 @@ def main() -> None:
 
     limits_rows()
 
+    leg_ik_rows()  # generic leg IK (gait)
+
     lines = [
         "# Bad inputs and faults, and what each gets now",
         "",
@@ -420,6 +422,20 @@ def main() -> None:
     out.write_text("\n".join(lines))
     print(f"{len(ROWS) + 4} rows -> {out}")
 
+
+
+def leg_ik_rows() -> None:
+    """Generic leg IK (issue 31): a leg chain that is not one, the analytic IK without the
+    NAO's leg geometry."""
+    from eaco_jax.gait import ik_generic, walk_engine
+    from eaco_jax.gait.robot import load_model, load_robot
+
+    record("a leg chain whose foot is not below the torso body (ik_generic.extract_chain)",
+           "API", lambda: ik_generic.extract_chain(load_model(load_robot("nao")), "l_foot",
+                                                   "r_foot"))
+    record("walk engine ik='analytic' for a robot without the NAO's leg geometry (op3)", "API",
+           lambda: walk_engine.joint_targets(jnp.zeros(14), jnp.float32(0.0),
+                                             load_robot("op3"), ik="analytic"))
 
 
 def limits_rows() -> None:
@@ -547,17 +563,6 @@ def checkpoint_folder_rows(burma: object, g: object) -> None:
             os.fsync = real
     record("disk full during a save (ENOSPC injected at the history segment's fsync; a real "
            "full tmpfs in tests/test_checkpoint.py)", "API", disk_full)
-
-    # ------------------------------------------------------------ generic leg IK (gait)
-    from eaco_jax.gait import ik_generic, walk_engine
-    from eaco_jax.gait.robot import load_model, load_robot
-
-    record("a leg chain whose foot is not below the torso body (ik_generic.extract_chain)",
-           "API", lambda: ik_generic.extract_chain(load_model(load_robot("nao")), "l_foot",
-                                                   "r_foot"))
-    record("walk engine ik='analytic' for a robot without the NAO's leg geometry (op3)", "API",
-           lambda: walk_engine.joint_targets(jnp.zeros(14), jnp.float32(0.0),
-                                             load_robot("op3"), ik="analytic"))
 
 
 if __name__ == "__main__":
