@@ -460,7 +460,8 @@ def limits_rows() -> None:
     hungry = ConstrainedProblem(
         lambda x: jnp.cumsum(jnp.broadcast_to(x[0], (2**20, 2**19)), axis=0)[-1, 0],
         lower=[0.0, 0.0], upper=[1.0, 1.0], name="hungry")
-    record("an objective that allocates 16 TiB (XLA RESOURCE_EXHAUSTED inside the chunk)", "API",
+    record("an objective whose evaluation allocates terabytes (XLA RESOURCE_EXHAUSTED in a chunk)",
+           "API",
            lambda: ea.minimize(hungry, ContinuousEACO(num_ants=2, refine_ants=0), seed=0,
                                iterations=1))
 

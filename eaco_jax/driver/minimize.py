@@ -648,9 +648,11 @@ def check_state_memory(strategy: Strategy, problem: Any, rows: int, params: Any)
             f"the state and {what}), more than half of the {limit / 2**30:.1f} GiB available; "
             f"{fix}")
     if work * rows >= WARN_WORKING_SET:
+        hint = (f" ({type(strategy).__name__}(refine_ants=0) is derivative-free, linear in dim)"
+                if "Hessians" in what else "")
         warnings.warn(
             f"{colony} on {name!r} needs ~{total / 2**30:.1f} GiB per iteration ({rows} "
-            f"row(s): the state and {what}); expect slow iterations", stacklevel=3)
+            f"row(s): the state and {what}); expect slow iterations{hint}", stacklevel=3)
 
 
 # --------------------------------------------------------------------------- the driver
