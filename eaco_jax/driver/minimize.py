@@ -144,8 +144,10 @@ def default_strategy(problem: Any) -> Strategy:
 
 # --------------------------------------------------------------------------- one iteration
 def _nan_count(fitness: Any) -> jax.Array:
-    """Ants whose evaluation holds a NaN (objective or violation)."""
-    leaves = [jnp.isnan(f) for f in jax.tree.leaves(fitness)
+    """Ants whose evaluation holds a NaN (objective or violation; several objectives per ant
+    count once)."""
+    leaves = [jnp.isnan(f).reshape(f.shape[:1] + (-1,)).any(axis=1) if jnp.ndim(f) > 1
+              else jnp.isnan(f) for f in jax.tree.leaves(fitness)
               if jnp.issubdtype(jnp.asarray(f).dtype, jnp.floating)]
     if not leaves:
         return jnp.zeros((), jnp.int32)

@@ -25,7 +25,9 @@ from eaco_jax.errors import ProblemError  # noqa: F401  (re-exported)
 
 @struct.dataclass
 class Evaluation:
-    """Batched result of a continuous problem: objective ``f`` and violation (0 = feasible)."""
+    """Batched result of a continuous problem: objective ``f`` and violation (0 = feasible).
+
+    ``f`` is ``(m,)``, or ``(m, k)`` for a multi-objective problem (one row per solution)."""
 
     f: jax.Array
     violation: jax.Array

@@ -27,6 +27,10 @@ _FAMILIES: dict[str, Callable[..., Any] | str] = {
     "rosenbrock": "eaco_jax.problems.functions:rosenbrock",
     "rastrigin": "eaco_jax.problems.functions:rastrigin",
     "ackley": "eaco_jax.problems.functions:ackley",
+    "zdt1": "eaco_jax.problems.multiobjective:zdt1",
+    "zdt2": "eaco_jax.problems.multiobjective:zdt2",
+    "zdt3": "eaco_jax.problems.multiobjective:zdt3",
+    "dtlz2": "eaco_jax.problems.multiobjective:dtlz2",
 }
 
 

@@ -1,10 +1,11 @@
 """Colony strategies: one module per algorithm, each a pure init/ask/tell over a pytree state.
 
 EACO: :class:`GraphEACO` (TSP; ``preset="paper" | "mmas" | "default"``), :class:`ContinuousEACO`,
-:class:`PathEACO`. Baselines in the same contract (vmapped populations, same driver, checkpoints
-and sweeps): ant system / EAS, ACS, MMAS (a GraphEACO preset), annealing and tabu search on
-tours; PSO, real-coded GA, simulated annealing and tabu search on continuous problems; random
-search. ``get(name, **fields)`` builds one by name (``names()`` lists them).
+:class:`PathEACO`, :class:`MOEACO` (several objectives: Pareto-ranked archive). Baselines in
+the same contract (vmapped populations, same driver, checkpoints and sweeps): ant system / EAS,
+ACS, MMAS (a GraphEACO preset), annealing and tabu search on tours; PSO, real-coded GA,
+simulated annealing and tabu search on continuous problems; random search.
+``get(name, **fields)`` builds one by name (``names()`` lists them).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from eaco_jax.strategies.base import State, Strategy
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO, ContinuousParams, ContinuousState
 from eaco_jax.strategies.graph_eaco import GraphEACO, GraphParams, GraphState
 from eaco_jax.strategies.islands import Islands, IslandsState
+from eaco_jax.strategies.mo_eaco import MOEACO, MOParams, MOState
 from eaco_jax.strategies.path_eaco import PathEACO, PathParams, PathState
 from eaco_jax.strategies.pso import PSO
 from eaco_jax.strategies.random_search import RandomSearch, RandomTours
@@ -49,6 +51,7 @@ _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
     "tabu": ("tabu_search:TabuSearch", {}),
     "random": ("random_search:RandomSearch", {}),
     "path-eaco": ("path_eaco:PathEACO", {}),
+    "mo-eaco": ("mo_eaco:MOEACO", {}),
 }
 
 
@@ -72,4 +75,5 @@ __all__ = [
     "GraphParams", "GraphState", "Islands", "IslandsState", "PathEACO", "PathParams",
     "PathState", "AntSystem", "AntColonySystem", "TourAnnealing", "TourTabu", "RandomTours",
     "RandomSearch", "PSO", "RealGA", "SimulatedAnnealing", "TabuSearch", "get", "names",
+    "MOEACO", "MOParams", "MOState",
 ]
