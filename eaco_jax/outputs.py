@@ -13,7 +13,15 @@ import numpy as np
 
 
 def to_jsonable(value: Any) -> Any:
-    """numpy / jax values -> plain JSON types (non-finite floats become null)."""
+    """``value`` as plain JSON: the one rule for every file and record the package writes
+    (results, sweep cells, checkpoint identities and run info).
+
+    Dict keys become strings and tuples lists; numpy/jax arrays become nested lists and numpy
+    scalars Python scalars; a ``Path`` its string; a non-finite float ``null`` (strict JSON has
+    no NaN or Infinity); str, int, bool, None and finite floats stay; anything else becomes its
+    ``repr`` (a label that compares equal for equal configurations, e.g. a strategy nested in
+    another; never an error). Applying it twice changes nothing.
+    """
     if isinstance(value, dict):
         return {str(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
@@ -22,12 +30,14 @@ def to_jsonable(value: Any) -> Any:
         value = np.asarray(value)
         return to_jsonable(value.tolist()) if value.ndim else to_jsonable(value.item())
     if isinstance(value, float):
-        return value if math.isfinite(value) else None
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, str | int | bool) or value is None:
+        return value
     if isinstance(value, np.generic):
         return to_jsonable(value.item())
     if isinstance(value, Path):
         return str(value)
-    return value
+    return repr(value)
 
 
 def write_json(path: str | Path, record: Any) -> Path:

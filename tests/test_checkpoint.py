@@ -1,6 +1,8 @@
 """Checkpoints: exact resume, retention, refusal of foreign/corrupt/incompatible checkpoints."""
 
+import dataclasses
 import hashlib
+import math
 import shutil
 from pathlib import Path
 
@@ -629,3 +631,57 @@ def test_a_real_full_disk_during_a_save_is_one_line(tmp_path):
         _same(_run(tmp_path / "ref", **kw), _run(ck, **kw))
     finally:
         subprocess.run(["umount", str(mnt)], check=False)
+
+
+def _jsonable_before_outputs_rule(value):
+    """The checkpoint's own sanitiser before it shared ``outputs.to_jsonable`` (verbatim): it
+    kept non-finite floats, which json wrote as NaN/Infinity."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable_before_outputs_rule(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable_before_outputs_rule(v) for v in value]
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return value
+    if isinstance(value, np.generic):
+        return value.item()
+    return repr(value)
+
+
+@dataclasses.dataclass(frozen=True)
+class CeilingSearch(RandomSearch):
+    """RandomSearch with a float field whose default is not finite (a strategy of one's own)."""
+    ceiling: float = math.inf
+
+
+def test_a_checkpoint_written_by_the_old_sanitiser_resumes(tmp_path, monkeypatch):
+    """Run identities are compared through today's JSON rule on both sides: a checkpoint whose
+    identity holds ``Infinity`` (the old rule) resumes bit-identically; another value of the
+    same field is still another run."""
+    from eaco_jax.driver import checkpoint
+
+    kw = dict(seed=1, iterations=30, chunk_size=5, checkpoint_every=10)
+    unbroken = ea.minimize(_problem(), CeilingSearch(), seed=1, iterations=30, chunk_size=5)
+    folder = tmp_path / "old"
+    with monkeypatch.context() as m:
+        m.setattr(checkpoint, "to_jsonable", _jsonable_before_outputs_rule)
+        mini(_problem(), CeilingSearch(), checkpoint_dir=folder, **kw)
+    assert read_meta(folder)["config"]["fields"]["ceiling"] == math.inf  # as stored before
+    shutil.rmtree(folder / "30")
+    shutil.rmtree(folder / "20")
+    _same(unbroken, mini(_problem(), CeilingSearch(), checkpoint_dir=folder, **kw))
+    assert read_meta(folder)["config"]["fields"]["ceiling"] is None  # saved by today's rule
+    before = _fingerprint(folder)
+    with pytest.raises(CheckpointError, match="different run.*fields"):
+        mini(_problem(), CeilingSearch(ceiling=2.0), checkpoint_dir=folder, **kw)
+    assert _fingerprint(folder) == before
+
+
+def test_one_json_rule():
+    from eaco_jax.outputs import to_jsonable
+
+    value = {1: np.float32(np.nan), "p": Path("a/b"), "t": (1, np.int64(2), -math.inf),
+             "a": jnp.array([1.5, jnp.inf]), "s": RandomSearch(num_ants=3), "ok": [True, None]}
+    want = {"1": None, "p": "a/b", "t": [1, 2, None], "a": [1.5, None],
+            "s": repr(RandomSearch(num_ants=3)), "ok": [True, None]}
+    assert to_jsonable(value) == want
+    assert to_jsonable(want) == want

@@ -57,6 +57,7 @@ import numpy as np
 from eaco_jax._version import __version__
 from eaco_jax.driver.history import HistoryCorrupt, HistoryLog, chain, merge_history
 from eaco_jax.errors import CheckpointError, ConfigError
+from eaco_jax.outputs import to_jsonable
 
 #: bumped whenever the on-disk layout changes; other formats are refused on restore.
 #: 2: problem data and telemetry left the colony state (eaco_jax 0.2).
@@ -92,18 +93,6 @@ def tree_hash(tree: Any) -> str:
     return h.hexdigest()[:16]
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (str, int, float, bool)) or value is None:
-        return value
-    if isinstance(value, np.generic):
-        return value.item()
-    return repr(value)
-
-
 def run_identity(
     problem: Any,
     strategy: Any,
@@ -128,7 +117,7 @@ def run_identity(
         },
         "config": {
             "strategy": f"{type(strategy).__module__}.{type(strategy).__qualname__}",
-            "fields": _jsonable(fields),
+            "fields": to_jsonable(fields),
             "params_hash": tree_hash(initial_params),
             "seeds": [int(s) for s in seeds],
             "total": int(total),
@@ -156,7 +145,9 @@ def check_identity(stored: dict[str, Any], current: dict[str, Any], where: Path)
             f"with {current['version']}; use that version or a new --checkpoint-dir"
         )
     for section in ("problem", "config"):
-        old, new = stored.get(section, {}), current[section]
+        # the stored section through today's rule: one written by an older rule (a non-finite
+        # float kept as NaN/Infinity) compares equal where the configuration is the same
+        old, new = to_jsonable(stored.get(section, {})), current[section]
         for name in new:
             if name == "max_evaluations" and name not in old and new[name] is None:
                 continue  # written before the evaluation budget was stored
@@ -423,7 +414,7 @@ class RunCheckpointer:
         self.every = every
         self.seconds = seconds
         self.keep = int(keep)
-        self.run_info = _jsonable(run_info or {})
+        self.run_info = to_jsonable(run_info or {})
         self.axis = 1 if batched else 0
         self.chunk = chunk
         self._last_done = 0
@@ -664,7 +655,7 @@ def write_run_info(directory: Path, run_info: dict[str, Any]) -> None:
     tmp = directory / f".tmp-{os.getpid()}-{RUN_INFO}"
     try:
         with open(tmp, "w") as f:
-            json.dump(_jsonable(run_info), f, sort_keys=True)
+            json.dump(to_jsonable(run_info), f, sort_keys=True)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, target)
