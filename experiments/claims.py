@@ -30,7 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 MANIFEST = Path(__file__).with_name("claims.toml")
 AREAS = {"tsp": "TSP", "constrained": "Constrained problems (CEC2006, paper tables)",
          "gait": "Gait", "path": "Path planning", "speed": "Speed and startup",
-         "resume": "Checkpoints, resume and soak"}
+         "resume": "Checkpoints, resume and soak",
+         "multiobjective": "Multi-objective (Pareto fronts against NSGA-II)"}
 MACHINES = ("cpu-2core", "h100", "h200x2")
 PROVENANCE = ("device", "versions", "date", "command")
 REQUIRED = ("id", "area", "text", "command", "result", "field", "value", "decimals", "machine",
