@@ -17,6 +17,7 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from typer.testing import CliRunner
@@ -46,6 +47,34 @@ def record(what: str, how: str, fn: Callable[[], object]) -> None:
     text = " / ".join([t for t in [text, *notes[:2]] if t])
     ROWS.append((what, how, text.replace("\n", " ").replace("|", "\\|")[:400]))
     print(f"- {what}: {text[:160]}")
+
+
+def multiobjective_rows() -> None:
+    """The multi-objective mode: a user's own problem, the strategy, tell by hand."""
+    from eaco_jax.problems import MultiObjectiveProblem
+    from eaco_jax.strategies import MOEACO, ContinuousEACO
+
+    zdt1 = ea.problems.get("zdt1", dim=5)
+    record("`MultiObjectiveProblem` with a `ref_point` of 1 number for 2 objectives", "API",
+           lambda: MultiObjectiveProblem(lambda x: x[:2], lower=[0, 0, 0], upper=[1, 1, 1],
+                                         ref_point=[1.0]))
+    record("`MultiObjectiveProblem` whose objectives return a scalar", "API",
+           lambda: MultiObjectiveProblem(lambda x: x[0], lower=[0, 0], upper=[1, 1],
+                                         ref_point=[1.0, 1.0]))
+    record("`ea.minimize(problems.get('zdt1'), strategy=ContinuousEACO())`", "API",
+           lambda: ea.minimize(zdt1, strategy=ContinuousEACO(), iterations=2))
+    record("`MOEACO` on a single-objective problem (`sphere`)", "API",
+           lambda: ea.minimize(ea.problems.get("sphere", dim=3), strategy=MOEACO(),
+                               iterations=2))
+
+    def one_objective() -> None:
+        s = MOEACO(num_ants=4, archive_size=4)
+        state = s.init(jax.random.key(0), zdt1)
+        x, state = s.ask(jax.random.key(1), state, zdt1)
+        e = zdt1.evaluate(x)
+        s.tell(state, x, ea.Evaluation(f=e.f[:, 0], violation=e.violation), zdt1)
+    record("`MOEACO.tell` with one objective per ant (`f` of shape (ants,))", "API",
+           one_objective)
 
 
 def cli(*args: str) -> str:
@@ -390,6 +419,8 @@ def main() -> None:
     limits_rows()
 
     leg_ik_rows()  # generic leg IK (gait)
+
+    multiobjective_rows()  # multi-objective mode (issue 30)
 
     lines = [
         "# Bad inputs and faults, and what each gets now",

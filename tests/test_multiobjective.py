@@ -241,6 +241,12 @@ def test_constrained_front_stays_feasible() -> None:
     assert 0.8 * best < hv[-1] <= best + 1e-3
 
 
+def test_minimize_picks_the_multiobjective_colony() -> None:
+    from eaco_jax.driver.minimize import default_strategy
+
+    assert isinstance(default_strategy(zdt1(5)), MOEACO)
+
+
 def test_wrong_inputs_are_one_line() -> None:
     problem = zdt1(5)
     strategy = MOEACO(num_ants=4, archive_size=4)

@@ -135,8 +135,13 @@ def default_strategy(problem: Any) -> Strategy:
         if not getattr(problem, "differentiable", True):  # simulations: no gradient steps
             return ContinuousEACO(refine_ants=0, repair_steps=0)
         return ContinuousEACO()
+    if kind == "multiobjective":
+        from eaco_jax.strategies.mo_eaco import MOEACO
+
+        return MOEACO()
     raise ProblemError(
-        "minimize() needs a problem with kind 'graph', 'path' or 'continuous', got "
+        "minimize() needs a problem with kind 'graph', 'path', 'continuous' or "
+        "'multiobjective', got "
         f"{type(problem).__name__} with kind={kind!r}; "
         "build one with eaco_jax.problems (TSP, ConstrainedProblem, ...)."
     )
