@@ -114,6 +114,16 @@ class PathPlanning:
     def goal(self) -> int:
         return GOAL
 
+    @property
+    def step_cost(self) -> jax.Array:
+        """Edge costs a path colony reads: the lengths."""
+        return self.dist
+
+    @property
+    def goal_cost(self) -> jax.Array:
+        """Lower bound on the cost from each node to the goal: the straight line."""
+        return self.to_goal
+
     def evaluate(self, paths: jax.Array) -> jax.Array:
         """(m,) lengths of node sequences (m, n); +inf if blocked or the goal is not reached."""
         if paths.ndim != 2 or paths.shape[1] != self.n:

@@ -51,6 +51,7 @@ _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
     "tabu": ("tabu_search:TabuSearch", {}),
     "random": ("random_search:RandomSearch", {}),
     "path-eaco": ("path_eaco:PathEACO", {}),
+    "path-ga": ("path_ga:PathGA", {}),
     "mo-eaco": ("mo_eaco:MOEACO", {}),
 }
 

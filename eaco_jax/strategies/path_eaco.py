@@ -1,17 +1,24 @@
 """EACO for start-to-goal path planning on a visibility graph (paper §5, Figs. 4-7).
 
+It solves any ``kind = "path"`` problem: shortest length
+(:class:`~eaco_jax.problems.path_planning.PathPlanning`) or least walking time through a scene
+(:class:`~eaco_jax.problems.scenes.ScenePath`); it reads the problem's ``step_cost`` and
+``goal_cost``.
+
 The colony machinery is the graph colony's: random-proportional choice (Eq. 2) with the q0
 rule, logistic-map chaos on the choice weights, elitist reinforcement (Eq. 73-74) restricted by
 the elitist-only deposit condition (Eq. 3-4) and weighted adaptively (Eq. 5), MAX-MIN bounds
 (Eq. 7) and a stagnation-driven evaporation schedule - all from :mod:`eaco_jax.ops.pheromone`.
 What differs is the walk: an ant starts at the start node, may only take visible edges, stops
 at the goal, and is dead (cost +inf) if it gets stuck. The heuristic is goal-directed,
-eta_ij = 1 / (d_ij + |x_j - goal|), so ants prefer short edges that head for the goal.
+eta_ij = 1 / (c_ij + h_j) (edge cost plus a lower bound on the cost left to the goal), so ants
+prefer cheap edges that head for the goal.
 
 Genetic operators on paths: *common-node crossover* (the child follows parent A to a node both
 parents visit, then parent B to the goal) with probability ``p_crossover``, and *shortcut*
-(string pulling: from each node jump to the furthest later node of the path that is visible),
-the path analogue of 2-opt, applied to every ant when ``shortcut`` is on.
+(string pulling: from each node jump to the furthest later node of the path joined to it by an
+edge no dearer than the path between them), the path analogue of 2-opt, applied to every ant
+when ``use_shortcut`` is on.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ from flax import struct
 
 from eaco_jax.ops import chaos, pheromone
 from eaco_jax.ops.construction import choice_weights
+from eaco_jax.ops.path_ops import common_node_crossover, path_diversity, shortcut
 from eaco_jax.problems.path_planning import GOAL, START, PathPlanning
 from eaco_jax.strategies.base import (
     BOOL,
@@ -78,10 +86,11 @@ class PathState(State):
 
 
 def path_log_eta(problem: PathPlanning) -> Array:
-    """Goal-directed heuristic log(1 / (d_ij + |x_j - goal|)), -inf where blocked."""
-    dist = problem.dist.astype(jnp.float32)
-    free = jnp.isfinite(dist)
-    log_eta = jnp.where(free, -jnp.log(dist + problem.to_goal[None, :] + 1e-6), -jnp.inf)
+    """Goal-directed heuristic log(1 / (c_ij + h_j)), -inf where blocked: ``c`` the problem's
+    edge cost (length or walking time), ``h`` its lower bound on the cost left to the goal."""
+    cost = problem.step_cost.astype(jnp.float32)
+    free = jnp.isfinite(cost)
+    log_eta = jnp.where(free, -jnp.log(cost + problem.goal_cost[None, :] + 1e-6), -jnp.inf)
     return log_eta.astype(jnp.float32)
 
 
@@ -106,7 +115,7 @@ class PathEACO(Strategy):
 
     def _init(self, key: Array, problem: PathPlanning, params: PathParams) -> PathState:
         n = problem.n
-        tau0 = 1.0 / (n * jnp.sum(problem.to_goal[START]))  # 1/(n * straight-line length)
+        tau0 = 1.0 / (n * jnp.sum(problem.goal_cost[START]))  # 1/(n * straight-line cost)
         key, k_chaos = jax.random.split(key)
         template = jnp.full((n,), GOAL, jnp.int32).at[0].set(START)
         return PathState(
@@ -146,7 +155,7 @@ class PathEACO(Strategy):
     def _ask(self, key: Array, state: PathState, problem: PathPlanning) -> tuple[Array, PathState]:
         k_walk, k_pair, k_cut, k_cross = jax.random.split(key, 4)
         paths = self._walk(k_walk, state, problem)
-        dist = problem.dist.astype(jnp.float32)
+        cost = problem.step_cost.astype(jnp.float32)
         p = state.params
         m = self.num_ants
         partners = paths[jax.random.randint(k_pair, (m,), 0, m)]
@@ -154,7 +163,7 @@ class PathEACO(Strategy):
         children = jax.vmap(common_node_crossover)(keys, paths, partners)
         cross = jax.random.uniform(k_cross, (m,)) < p.p_crossover
         paths = jnp.where(cross[:, None], children, paths)
-        cut = jax.vmap(shortcut, in_axes=(0, None))(paths, dist)
+        cut = jax.vmap(shortcut, in_axes=(0, None))(paths, cost)
         paths = jnp.where(p.use_shortcut, cut, paths)
         return paths, state.replace(chaos_x=chaos.logistic_step(state.chaos_x))
 
@@ -181,59 +190,3 @@ class PathEACO(Strategy):
         tau_max, tau_min = pheromone.mmas_bounds(best_len, n, p.p_best, p.q * (1.0 + p.sigma))
         tau = jnp.where(has_best, pheromone.clamp(tau, tau_min, tau_max), tau)
         return state.replace(tau=tau), {"diversity": path_diversity(paths, n)}
-
-
-def common_node_crossover(key: Array, a: Array, b: Array) -> Array:
-    """Follow ``a`` up to a random node that ``b`` also visits, then ``b`` to the goal.
-
-    Nodes are compared up to each parent's first arrival at the goal; with no common inner node
-    the child is ``a``.
-    """
-    n = a.shape[0]
-    idx = jnp.arange(n)
-    in_b = jnp.any(a[:, None] == b[None, :], axis=1)
-    inner = (a != START) & (a != GOAL) & in_b
-    pick = jax.random.categorical(key, jnp.where(inner, 0.0, -jnp.inf))
-    any_common = jnp.any(inner)
-    pos_a = jnp.where(any_common, pick, n)
-    pos_b = jnp.argmax(b == a[jnp.minimum(pick, n - 1)])
-    src = idx - pos_a + pos_b
-    child = jnp.where(idx < pos_a, a, jnp.where(src < n, b[jnp.clip(src, 0, n - 1)], GOAL))
-    return child.astype(jnp.int32)
-
-
-def shortcut(path: Array, dist: Array) -> Array:
-    """String pulling: from each kept node jump to the furthest later node visible from it.
-
-    Never lengthens a path (triangle inequality); a dead path (blocked edge, no goal) is returned
-    as is.
-    """
-    n = path.shape[0]
-    idx = jnp.arange(n)
-
-    def step(pos, _):
-        node = path[pos]
-        visible = jnp.isfinite(dist[node, path]) & (idx > pos)
-        nxt = jnp.where(path[pos] == GOAL, pos, jnp.max(jnp.where(visible, idx, pos + 1)))
-        nxt = jnp.minimum(nxt, n - 1)
-        return nxt, path[nxt]
-
-    _, rest = jax.lax.scan(step, jnp.int32(0), None, length=n - 1)
-    out = jnp.concatenate([path[:1], rest])
-    valid = (path[-1] == GOAL) & jnp.all(
-        (path[:-1] == path[1:]) | jnp.isfinite(dist[path[:-1], path[1:]]))
-    return jnp.where(valid, out, path).astype(jnp.int32)
-
-
-def path_diversity(paths: Array, n: int) -> Array:
-    """Mean pairwise Jaccard distance of the ants' undirected edge sets, in [0, 1]."""
-    a, b = paths[:, :-1], paths[:, 1:]
-    m = paths.shape[0]
-    e = jnp.zeros((m, n, n), jnp.float32).at[jnp.arange(m)[:, None], a, b].max(
-        jnp.where(a != b, 1.0, 0.0))
-    e = jnp.maximum(e, jnp.swapaxes(e, 1, 2)).reshape(m, -1)
-    inter = e @ e.T
-    sizes = e.sum(axis=1)
-    union = sizes[:, None] + sizes[None, :] - inter
-    dist = jnp.where(union > 0, 1.0 - inter / jnp.maximum(union, 1.0), 0.0)
-    return (dist.sum() / jnp.maximum(m * (m - 1), 1)).astype(jnp.float32)
