@@ -1,9 +1,12 @@
 """Validation of a stored gait: randomised trials, and export of a run that replays on plain MuJoCo.
 
-:func:`evaluate_trials` simulates one gait in ``n`` fresh randomised worlds (one batched call),
-drawn from a stream of keys disjoint from the optimisation's
-(:func:`~eaco_jax.gait.worlds.world_key` stream 1; optimisation uses stream 0), and summarises
-falls, speed (mean and 95 % confidence half-width) and cost of transport. ``accurate=True``
+:func:`evaluate_trials` simulates one gait in ``n`` randomised worlds (one batched call) drawn
+from one of the run seed's three key streams (:data:`~eaco_jax.gait.worlds.STREAMS`): ``test``
+by default (worlds nothing is chosen on), ``selection`` for choosing among finalists, or
+``optimisation`` (the search's own stream, to measure overfitting). It summarises falls (with
+n and the Clopper-Pearson 95 % interval), speed (mean and 95 % confidence half-width), cost of
+transport and, for a robot with electrical motor data, the constraints of
+:mod:`eaco_jax.gait.constraints` over the worlds. ``accurate=True``
 re-runs them with MuJoCo's default solver settings (the spec's "accurate" solver: 2 ms
 timestep, 100 iterations, 50 line-search iterations, tolerance 1e-8).
 
@@ -33,12 +36,15 @@ import mujoco
 import numpy as np
 
 from eaco_jax.errors import ProblemError
+from eaco_jax.gait import constraints as gc
+from eaco_jax.gait.motors import motor_model
 from eaco_jax.gait.robot import model_xml
 from eaco_jax.gait.rollout_native import initial_state, substeps
-from eaco_jax.gait.worlds import RobustConfig, couple_controls, world_key
+from eaco_jax.gait.stats import fall_rate
+from eaco_jax.gait.worlds import STREAMS, RobustConfig, couple_controls, stream_key
 
-TRIAL_STREAM = 1
-"""Key stream of validation trials (optimisation draws its worlds from stream 0)."""
+TRIAL_STREAM = STREAMS["test"]
+"""Key stream id of reported trials: the test stream."""
 
 
 def _params(problem: Any, params: Any) -> jax.Array:
@@ -49,30 +55,36 @@ def _params(problem: Any, params: Any) -> jax.Array:
 
 
 def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
-                    accurate: bool = False, config: RobustConfig | None = None) -> dict[str, Any]:
+                    accurate: bool = False, config: RobustConfig | None = None,
+                    stream: str = "test", batch: int = 0) -> dict[str, Any]:
     """Replay one gait in ``n`` randomised worlds (ranges: ``config``, else the problem's
-    ``robust``, else :class:`RobustConfig` defaults) on the problem's backend and horizon.
+    ``robust``, else :class:`RobustConfig` defaults) on the problem's backend and horizon,
+    drawn from batch ``batch`` of ``stream`` of ``seed`` (the run's seed).
 
-    Returns ``n``, ``falls``, ``fall_trials`` (indices of the trials that fell: the same
-    worlds replay with the same ``seed``), ``speed_mps_mean``, ``speed_mps_ci95``
+    Returns ``n``, ``falls``, ``fall_rate``, ``fall_rate_ci95`` (Clopper-Pearson),
+    ``fall_trials`` (indices of the trials that fell: the same worlds replay with the same
+    ``seed``, ``stream`` and ``batch``), ``speed_mps_mean``, ``speed_mps_ci95``
     (1.96 s / sqrt(n)), ``distance_m_mean``, ``cost_of_transport_mean`` (over trials that
-    walked >= 1 cm), ``mean_power_w_mean``, ``seed``, ``accuracy``, ``backend``.
+    walked >= 1 cm), ``mean_power_w_mean``, ``constraints`` (robots with electrical data:
+    :func:`eaco_jax.gait.constraints.table` over the worst world), ``seed``, ``stream``,
+    ``batch``, ``accuracy``, ``backend``.
     """
     if not isinstance(n, int) or n < 1:
         raise ProblemError(f"trials must be a positive integer, got {n!r}")
+    if stream not in STREAMS:
+        raise ProblemError(f"stream must be one of {', '.join(STREAMS)}, got {stream!r}")
     if not problem.spec.has_motors:
         raise ProblemError(f"robot {problem.spec.name!r} has no motor datasheet: no trials")
     cfg = config or problem.robust or RobustConfig()
     prob = problem.replace(robust=cfg, accuracy="accurate" if accurate else problem.accuracy)
     x = _params(prob, params)
-    worlds = prob.worlds(world_key(int(seed), 0, TRIAL_STREAM), n)
+    worlds = prob.worlds(stream_key(int(seed), stream, int(batch)), n)
     res = jax.jit(lambda x, w: prob.rollout(x, w, quality=True))(x, worlds)
     res = jax.tree.map(lambda v: np.asarray(v)[0], res)  # (n, ...)
     speed = res["speed_mps"].astype(np.float64)
     cot = res["cost_of_transport"][np.isfinite(res["cost_of_transport"])]
-    return {
-        "n": n,
-        "falls": int(np.sum(res["fell"])),
+    out = {
+        **fall_rate(int(np.sum(res["fell"])), n),
         "fall_trials": [int(i) for i in np.flatnonzero(res["fell"])],
         "speed_mps_mean": float(np.mean(speed)),
         "speed_mps_ci95": float(1.96 * np.std(speed, ddof=1) / math.sqrt(n)) if n > 1 else 0.0,
@@ -81,9 +93,18 @@ def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
         "mean_power_w_mean": float(np.mean(res["mean_power_w"])),
         "turn_deg_s_mean": float(np.mean(res["turn_deg_s"])),
         "seed": int(seed),
+        "stream": stream,
+        "batch": int(batch),
         "accuracy": prob.accuracy,
         "backend": prob.backend,
     }
+    mm = motor_model(prob.spec)
+    if mm is not None:
+        vals = gc.values(jax.tree.map(lambda v: v[None], res), prob.turn)
+        g = gc.normalised(vals, mm, prob.horizon, n)
+        out["constraints"] = gc.table({k: np.asarray(v)[0] for k, v in vals.items()},
+                                      np.asarray(g)[0], mm, prob.horizon, n)
+    return out
 
 
 def export_run(problem: Any, params: Any, path: str | Path,

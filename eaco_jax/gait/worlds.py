@@ -20,6 +20,12 @@ What varies per world, and where it enters the simulation (identically on both b
   horizontal push on the torso (a force on the free joint's translational dofs for
   ``push_duration`` seconds, at a random time after the start-up ramp).
 
+Three key streams, kept apart (:data:`STREAMS`, :func:`stream_key`): every world is drawn from
+``fold_in(fold_in(PRNGKey(seed), stream id), batch)`` of the run's seed, with stream ids
+``optimisation`` 0 (the worlds the search sees; the driver's per-iteration key picks the batch,
+:func:`optimisation_key`), ``selection`` 1 (worlds that choose among finalists) and ``test`` 2
+(worlds nothing is chosen on: every reported fall rate).
+
 The two HipYawPitch joints share a motor: their motor factors, pose offsets and noisy targets are
 equal (the leader's, as on a NAO where LHipYawPitch wins).
 """
@@ -52,7 +58,8 @@ class RobustConfig:
     ``motor`` (x the datasheet tolerances of stall torque and no-load speed, uniform),
     ``target_noise`` (rad, std), ``latency`` (control steps, uniform 0..latency),
     ``init_noise`` (rad, std), ``push`` (largest horizontal impulse, N s) over ``push_duration``.
-    ``seed`` fixes the worlds when the caller passes no key (a deterministic objective).
+    ``seed`` is the root of the three world streams (the run's seed); a caller passing no key
+    gets batch 0 of its optimisation stream (a deterministic objective).
     """
 
     R: int = 8
@@ -114,9 +121,33 @@ class Worlds:
         return int(self.friction.shape[-1])
 
 
+#: the three key streams of randomised worlds and their ids: ``optimisation`` (the worlds the
+#: search sees), ``selection`` (worlds that choose among finalists), ``test`` (worlds nothing
+#: is ever chosen on: every reported fall rate)
+STREAMS = {"optimisation": 0, "selection": 1, "test": 2}
+
+
 def world_key(seed: int, iteration: int | jax.Array, stream: int = 0) -> jax.Array:
-    """The key of one evaluation: ``stream`` 0 = optimisation, 1 = validation trials."""
+    """The key of world batch ``iteration`` of stream id ``stream`` (:data:`STREAMS`):
+    ``fold_in(fold_in(PRNGKey(seed), stream), iteration)``. Streams are disjoint subtrees of
+    the seed's key: two streams share a key only through a threefry collision."""
     return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), stream), iteration)
+
+
+def stream_key(seed: int, stream: str, index: int | jax.Array = 0) -> jax.Array:
+    """The key of world batch ``index`` of a named stream (:data:`STREAMS`) of a run's seed."""
+    if stream not in STREAMS:
+        raise ProblemError(f"stream must be one of {', '.join(STREAMS)}, got {stream!r}")
+    return world_key(seed, index, STREAMS[stream])
+
+
+def optimisation_key(seed: int, key: jax.Array) -> jax.Array:
+    """The optimisation stream's key for an evaluation the driver keyed with ``key``: the
+    driver's key (split off the colony's state, new each iteration and seed row) picks a batch
+    of the seed's optimisation stream by its 64 random bits, so the search's worlds stay in
+    that stream's subtree, apart from selection and test."""
+    words = jax.random.bits(key, (2,), jnp.uint32)
+    return jax.random.fold_in(stream_key(seed, "optimisation", words[0]), words[1])
 
 
 def _couple(x: jax.Array, spec, xp=jnp) -> jax.Array:
@@ -269,5 +300,6 @@ def native_world_models(model, spec, worlds_np) -> list:
     return out
 
 
-__all__ = ["RobustConfig", "Worlds", "couple_controls", "initial_qpos", "model_fields",
-           "native_world_models", "push_at", "sample_worlds", "world_ctrl_at", "world_key"]
+__all__ = ["STREAMS", "RobustConfig", "Worlds", "couple_controls", "initial_qpos", "model_fields",
+           "native_world_models", "optimisation_key", "push_at", "sample_worlds",
+           "stream_key", "world_ctrl_at", "world_key"]

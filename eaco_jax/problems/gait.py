@@ -10,24 +10,35 @@ the energy / gait-quality metrics of :mod:`eaco_jax.gait.quality`).
 
 ``robust=RobustConfig(R=8, aggregate="cvar", ...)`` evaluates every ant in R randomised worlds
 (:mod:`eaco_jax.gait.worlds`), ants x R in one batched rollout, and aggregates the per-world
-fitness. ``evaluate(X, key)`` draws the worlds from ``key`` (a driver passes
-``world_key(seed, iteration)``); without a key the worlds are fixed by ``robust.seed``.
+fitness. ``evaluate(X, key)`` draws the worlds from the optimisation stream of ``robust.seed``
+(the run's seed), the batch picked by ``key`` (the driver's per-iteration key,
+:func:`~eaco_jax.gait.worlds.optimisation_key`); without a key the worlds are that stream's
+batch 0. Selection and test worlds come from the other two streams
+(:data:`~eaco_jax.gait.worlds.STREAMS`), never seen by the search.
 ``penalty="power"`` or ``"cot"`` (weight ``penalty_weight``, off by default) subtracts the energy
 cost from each world's fitness: ``"cot"``: ``d - w E / (m g)`` (= ``d (1 - w CoT)``),
 ``"power"``: ``d - w P_mean`` (metres per watt).
+
+``constrained=True`` (a :class:`ConstrainedGaitProblem`) makes the search a constrained
+problem with the colony's own constraint handling (epsilon-constrained, Deb, penalty): the
+objective is speed (``f = -speed``, the fitness distance over the horizon, aggregated over the
+worlds as the fitness is) and the violation the sum of the normalised constraints of
+:mod:`eaco_jax.gait.constraints` (endurance, current, slip, drift, falls), all from the same
+batched rollout; ``host_check`` re-checks the best and reports each constraint.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from eaco_jax.gait import constraints as gc
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import TURNS, GaitSummary, aggregate, gait_fitness, summarize
 from eaco_jax.gait.robot import RobotSpec, known_robots, load_robot
@@ -38,7 +49,14 @@ from eaco_jax.gait.rollout_native import (
     native_rollout_callback,
 )
 from eaco_jax.gait.walk_engine import bounds, control_sequence, param_names
-from eaco_jax.gait.worlds import RobustConfig, Worlds, couple_controls, sample_worlds, world_key
+from eaco_jax.gait.worlds import (
+    RobustConfig,
+    Worlds,
+    couple_controls,
+    optimisation_key,
+    sample_worlds,
+    stream_key,
+)
 from eaco_jax.problems.base import Evaluation, ProblemError
 
 BACKENDS = ("auto", "mjx", "native")
@@ -68,7 +86,7 @@ class GaitProblem:
     turn: str | None = struct.field(pytree_node=False, default=None)
     impl: str = struct.field(pytree_node=False, default="jax")  # MJX implementation: jax|warp
 
-    kind = "continuous"
+    kind: ClassVar[str] = "continuous"
     differentiable = False  # a simulation: no gradient repair / refinement steps
 
     def shown_best(self, cost: float) -> float:
@@ -117,7 +135,7 @@ class GaitProblem:
         """The randomised worlds of one evaluation: ``n`` (default ``robust.R``) worlds drawn
         from ``key`` (default: fixed by ``robust.seed``)."""
         cfg = self.robust or RobustConfig()
-        key = world_key(cfg.seed, 0) if key is None else key
+        key = stream_key(cfg.seed, "optimisation", 0) if key is None else key
         nbody = native_model(self.spec, float(self.slope_deg), self.accuracy).nbody
         return sample_worlds(key, cfg, self.spec, nbody, self.n_steps, n)
 
@@ -207,16 +225,27 @@ class GaitProblem:
         return out
 
     def evaluate(self, solutions: jax.Array, key: jax.Array | None = None) -> Evaluation:
-        """``Evaluation(f=-fitness, violation=0)`` for a colony ``(m, dim)``; ``key`` draws the
-        randomised worlds of a robust problem (see :meth:`worlds`)."""
+        """``Evaluation(f=-fitness, violation=0)`` for a colony ``(m, dim)``; ``key`` (the
+        driver's) picks the batch of optimisation-stream worlds of a robust problem."""
         if solutions.ndim != 2 or solutions.shape[-1] != self.dim:
             raise ProblemError(
                 f"gait problem {self.name!r}: solutions must be (ants, {self.dim}), "
                 f"got {tuple(solutions.shape)}")
         x = jnp.clip(solutions.astype(self.dtype), self.lower, self.upper)
+        if key is not None and self.robust is not None:
+            key = optimisation_key(self.robust.seed, key)
         fit = self.metrics(x, key)["fitness"]
         fit = jnp.where(jnp.isfinite(fit), fit, 0.0).astype(self.dtype)
         return Evaluation(f=-fit, violation=jnp.zeros_like(fit))
+
+    @property
+    def constrained(self) -> bool:
+        """Whether the search is constrained (a :class:`ConstrainedGaitProblem`)."""
+        return False
+
+    @property
+    def num_inequality(self) -> int:
+        return 0
 
     def simulate(
         self, params: Any, record: bool = True, backend: str | None = None,
@@ -299,6 +328,96 @@ class GaitProblem:
                                             strict=True)}
 
 
+@struct.dataclass
+class ConstrainedGaitProblem(GaitProblem):
+    """Maximise speed (``f = -speed``) subject to the constraints of
+    :mod:`eaco_jax.gait.constraints`, each from the same batched rollout over the R worlds;
+    ``violation`` is the sum of their normalised excesses, so the colony's constraint handling
+    (epsilon-constrained, Deb, penalty) applies as to any constrained problem."""
+
+    @property
+    def constrained(self) -> bool:
+        return True
+
+    @property
+    def constraint_names(self) -> tuple[str, ...]:
+        return gc.names(self.turn)
+
+    @property
+    def num_inequality(self) -> int:
+        return len(self.constraint_names)
+
+    def constraints(self, solutions: jax.Array, worlds: Worlds | None = None
+                    ) -> tuple[jax.Array, dict[str, jax.Array], jax.Array]:
+        """Speed ``(m,)`` (m/s; turning gaits: deg/s, the fitness over the horizon, aggregated
+        over the worlds like the fitness), each constraint's value ``{name: (m,)}`` and the
+        normalised constraints ``g`` ``(m, p)`` of gaits ``(m, dim)`` in ``worlds`` (None: the
+        nominal world)."""
+        res = self.rollout(solutions, worlds, quality=True)
+        per_world = res["fitness"] / self.horizon
+        if worlds is None:
+            speed = per_world[:, 0]
+        else:
+            cfg = self.robust or RobustConfig()
+            speed = aggregate(per_world, cfg.aggregate, cfg.alpha)
+        vals = gc.values(res, self.turn)
+        g = gc.normalised(vals, ql.mo.motor_model(self.spec), self.horizon,
+                          1 if worlds is None else worlds.size)
+        return speed, vals, g
+
+    def evaluate(self, solutions: jax.Array, key: jax.Array | None = None) -> Evaluation:
+        """``Evaluation(f=-speed, violation)`` of a colony ``(m, dim)`` in the worlds ``key``
+        picks from the optimisation stream (see :class:`GaitProblem`)."""
+        if solutions.ndim != 2 or solutions.shape[-1] != self.dim:
+            raise ProblemError(
+                f"gait problem {self.name!r}: solutions must be (ants, {self.dim}), "
+                f"got {tuple(solutions.shape)}")
+        x = jnp.clip(solutions.astype(self.dtype), self.lower, self.upper)
+        worlds = None
+        if self.robust is not None:
+            worlds = self.worlds(None if key is None else optimisation_key(self.robust.seed, key))
+        speed, _, g = self.constraints(x, worlds)
+        speed = jnp.where(jnp.isfinite(speed), speed, 0.0).astype(self.dtype)
+        return Evaluation(f=-speed, violation=gc.violation(g).astype(self.dtype))
+
+    def report(self, params: Any, worlds: Worlds | None = None) -> dict[str, Any]:
+        """One gait's ``speed``, ``violation``, ``feasible`` and per constraint its value,
+        limit, margin and whether it holds (:func:`eaco_jax.gait.constraints.table`), in
+        ``worlds`` (None: the nominal world)."""
+        p = np.asarray(params, np.float32).reshape(-1)
+        if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
+            raise ProblemError(f"a gait needs {self.dim} finite parameters, got shape {p.shape}")
+        x = jnp.clip(jnp.asarray(p)[None], self.lower, self.upper)
+        speed, vals, g = jax.jit(self.constraints)(x, worlds)
+        v = float(np.asarray(gc.violation(g))[0])
+        return {"speed": float(np.asarray(speed)[0]), "violation": v, "feasible": v <= 0.0,
+                "worlds": 1 if worlds is None else worlds.size,
+                "constraints": gc.table({k: np.asarray(a)[0] for k, a in vals.items()},
+                                        np.asarray(g)[0], ql.mo.motor_model(self.spec),
+                                        self.horizon, 1 if worlds is None else worlds.size)}
+
+    def host_check(self, x: Any) -> dict[str, Any]:
+        """The returned best re-simulated in the key-less worlds (the optimisation stream's
+        batch 0; the nominal world without ``robust``): ``f`` (-speed), ``violation``,
+        ``feasible``, ``cost`` (``f`` if feasible, else +inf) and ``constraints`` (each one's
+        value, limit, margin and whether it holds). A point outside the bounds raises
+        :class:`ProblemError`."""
+        point = np.asarray(x, np.float64).reshape(-1)
+        lo, hi = np.asarray(self.lower, np.float64), np.asarray(self.upper, np.float64)
+        if point.shape != lo.shape:
+            raise ProblemError(f"problem {self.name!r}: a point must have shape {lo.shape}, "
+                               f"got {point.shape}")
+        slack = 4 * np.finfo(np.float32).eps * np.maximum(np.abs(lo), 1.0)
+        if np.any(point < lo - slack) or np.any(point > hi + slack):
+            raise ProblemError(f"problem {self.name!r}: point outside its bounds")
+        rep = self.report(point, self.worlds() if self.robust is not None else None)
+        f = -rep["speed"]
+        return {"f": f, "violation": rep["violation"], "feasible": rep["feasible"],
+                "cost": f if rep["feasible"] else math.inf,
+                "tolerance": {"inequality": 0.0, "equality": 0.0},
+                "constraints": rep["constraints"]}
+
+
 _FITNESS_KEYS = ("fitness", "distance_m", "speed_mps", "fell", "drift_deg", "fall_time",
                  "turn_deg_s")
 
@@ -378,6 +497,7 @@ def make_gait_problem(
     penalty_weight: float = 0.0,
     impl: str = "auto",
     turn: str | None = None,
+    constrained: bool = False,
 ) -> GaitProblem:
     """A :class:`GaitProblem` for a robot (a shipped one's name: "nao", "ant", ..., or the path
     of a spec .json, see docs/robots.md) and backend ("auto", "mjx",
@@ -385,7 +505,8 @@ def make_gait_problem(
     ``robust`` for fitness over randomised worlds, ``penalty`` ("power" | "cot") and its weight
     for an energy-aware fitness; ``turn`` ("left" | "right") scores the heading turned instead
     of the distance; ``impl`` the MJX implementation ("jax", "warp" = MuJoCo Warp on
-    CUDA, "auto" = warp where it can run)."""
+    CUDA, "auto" = warp where it can run); ``constrained`` maximises speed under the
+    constraints of :mod:`eaco_jax.gait.constraints` (a :class:`ConstrainedGaitProblem`)."""
     if isinstance(robot, RobotSpec):
         spec = robot
     else:
@@ -414,10 +535,19 @@ def make_gait_problem(
     if (robust is not None or penalty is not None) and not spec.has_motors:
         raise ProblemError(f"robot {spec.name!r} has no motor datasheet: robust and energy "
                            "options need one (nao)")
+    if not isinstance(constrained, bool):
+        raise ProblemError(f"constrained must be True or False, got {constrained!r}")
+    if constrained and ql.mo.motor_model(spec) is None:
+        raise ProblemError(f"robot {spec.name!r} has no electrical motor data (a spec "
+                           "'motors' block with supply_voltage_v): no constrained gait search")
+    if constrained and penalty is not None:
+        raise ProblemError("a constrained gait search has no energy penalty: drop penalty "
+                           "(the constraints replace it)")
     impl = _resolve_impl(impl, backend)
     lo, hi = bounds(spec)
     name = f"gait-{spec.name}"
-    return GaitProblem(
+    cls = ConstrainedGaitProblem if constrained else GaitProblem
+    return cls(
         lower=jnp.asarray(lo), upper=jnp.asarray(hi), spec=spec, backend=backend,
         horizon=float(horizon), direction_deg=float(direction_deg), slope_deg=float(slope_deg),
         accuracy=accuracy, name=name, robust=robust, penalty=penalty,
@@ -443,5 +573,5 @@ def _resolve_impl(impl: str, backend: str) -> str:
     return impl
 
 
-__all__ = ["BACKENDS", "GaitProblem", "RobustConfig", "known_robots", "make_gait_problem",
-           "quality_record"]
+__all__ = ["BACKENDS", "ConstrainedGaitProblem", "GaitProblem", "RobustConfig", "known_robots",
+           "make_gait_problem", "quality_record"]
