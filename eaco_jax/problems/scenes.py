@@ -506,12 +506,13 @@ def build_problem(scene: Scene, speeds: GaitSpeeds | None = None, *,
 
     s, g = np.asarray(scene.start), np.asarray(scene.goal)
     for label, p in (("start", s), ("goal", g)):
+        at = f"({p[0]:g}, {p[1]:g})"
         if not on_floor(p):
-            raise ProblemError(f"{scene.name}: {label} {tuple(p)} is off the floor "
-                               f"{list(scene.bounds)}")
+            raise ProblemError(f"{scene.name}: {label} {at} is off the floor "
+                               f"{list(scene.bounds)}; move it onto the floor")
         for i, poly in enumerate(solid):
             if _point_inside(p, poly):
-                raise ProblemError(f"{scene.name}: {label} {tuple(p)} lies on obstacle {i} "
+                raise ProblemError(f"{scene.name}: {label} {at} lies on obstacle {i} "
                                    f"(grown by the clearance {c:g} m); move it or the obstacle")
     pts = [*grown]
     for r in scene.ramps:
