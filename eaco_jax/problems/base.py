@@ -3,8 +3,12 @@
 A problem is a pytree (a ``flax.struct`` dataclass: arrays are leaves, configuration is
 static) with
 
-* ``kind``: ``"graph"`` (solutions are permutations / node sequences, e.g. TSP tours) or
-  ``"continuous"`` (solutions are real vectors inside box bounds);
+* ``kind``: ``"graph"`` (solutions are permutations / node sequences, e.g. TSP tours),
+  ``"path"`` (node sequences from a start to a goal), ``"continuous"`` (real vectors inside box
+  bounds) or ``"multiobjective"``; declared as a class constant, ``kind: ClassVar[str] =
+  "graph"`` (not a field: it is no setting); a wrapper whose kind is its inner problem's
+  (:class:`~eaco_jax.problems.sharding.Sharded`) returns it from a read-only property, the
+  form :class:`Problem` declares;
 * ``name``: a short identifier used in results and checkpoints;
 * ``evaluate(solutions) -> fitness``: pure and batched over the leading (ant) axis, so the
   whole colony is evaluated in one traced call. Graph problems return ``(m,)`` costs; continuous
@@ -35,7 +39,9 @@ class Evaluation:
 
 @runtime_checkable
 class Problem(Protocol):
-    kind: str
+    @property
+    def kind(self) -> str: ...
+
     name: str
 
     def evaluate(self, solutions: jax.Array) -> Any: ...

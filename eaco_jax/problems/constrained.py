@@ -17,7 +17,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -62,7 +62,7 @@ class ConstrainedProblem:
     differentiate (a simulator behind a callback): strategies then take no gradient steps.
     """
 
-    kind = "continuous"
+    kind: ClassVar[str] = "continuous"
 
     def __init__(
         self,

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -47,7 +47,7 @@ class MultiObjectiveProblem:
     ``ref_point`` are leaves; functions, name, ``true_front`` and ``hv_star`` are static.
     """
 
-    kind = "multiobjective"
+    kind: ClassVar[str] = "multiobjective"
     _STATIC = ("objectives", "inequality", "equality", "name", "true_front", "hv_star",
                "num_objectives", "num_inequality", "num_equality")
 

@@ -17,6 +17,7 @@ Obstacles must be convex polygons (split a non-convex one into convex parts).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -100,7 +101,8 @@ class PathPlanning:
     clearance: float = struct.field(pytree_node=False, default=0.0)
     name: str = struct.field(pytree_node=False, default="path")
     optimum: float | None = struct.field(pytree_node=False, default=None)
-    kind: str = struct.field(pytree_node=False, default="path")
+
+    kind: ClassVar[str] = "path"
 
     @property
     def n(self) -> int:

@@ -46,6 +46,7 @@ class Sharded:
 
     @property
     def kind(self) -> str:
+        """The wrapped problem's kind."""
         return self.problem.kind
 
     @property

@@ -20,7 +20,7 @@ from __future__ import annotations
 import csv
 import functools
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -116,7 +116,6 @@ class TSP:
       coords: ``(n, 2)`` city coordinates when the instance has them (for plots), else None.
       name: instance name for results.
       optimum: known optimal tour length, or None.
-      kind: always ``"graph"``.
       integer: every distance is an integer (TSPLIB metrics, integer matrices): tour lengths
         are then summed exactly in integers.
     """
@@ -126,8 +125,9 @@ class TSP:
     coords: jax.Array | None = None
     name: str = struct.field(pytree_node=False, default="custom")
     optimum: float | None = struct.field(pytree_node=False, default=None)
-    kind: str = struct.field(pytree_node=False, default="graph")
     integer: bool = struct.field(pytree_node=False, default=False)
+
+    kind: ClassVar[str] = "graph"
 
     @property
     def n(self) -> int:

@@ -31,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from typing import Any, ClassVar
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -206,8 +206,15 @@ class Strategy:
     """
 
     num_ants: int = 40
-    #: which problem kinds the strategy solves ("graph", "path" or "continuous")
-    problem_kind: ClassVar[str] = ""
+
+    @property
+    def problem_kind(self) -> str:
+        """The problem kind this strategy solves (``"graph"``, ``"path"``, ``"continuous"``,
+        ``"multiobjective"``; ``""``: any). A strategy declares it as a class constant,
+        ``problem_kind: ClassVar[str] = "graph"`` (not a field: it is no setting); a wrapper
+        whose kind is its inner strategy's (:class:`~eaco_jax.strategies.islands.Islands`)
+        overrides this read-only property."""
+        return ""
 
     # ----------------------------------------------------------------- subclass hooks
     def default_params(self, problem: Any = None) -> PyTree:

@@ -146,7 +146,7 @@ class ContinuousEACO(Strategy):
     constraint_method: str = "epsilon"
     repair_steps: int = 3
     refine_ants: int = 4
-    problem_kind = "continuous"
+    problem_kind: ClassVar[str] = "continuous"
 
     def __post_init__(self) -> None:
         ch.check_method(self.constraint_method)

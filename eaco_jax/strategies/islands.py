@@ -123,7 +123,8 @@ class Islands(Strategy):
         object.__setattr__(self, "num_ants", self.islands * self.strategy.num_ants)
 
     @property
-    def problem_kind(self) -> str:  # type: ignore[override]
+    def problem_kind(self) -> str:
+        """The inner strategy's problem kind."""
         return self.strategy.problem_kind
 
     # ----------------------------------------------------------------- delegation

@@ -96,7 +96,7 @@ class MOEACO(Strategy):
 
     num_ants: int = 100
     archive_size: int = 100
-    problem_kind = "multiobjective"
+    problem_kind: ClassVar[str] = "multiobjective"
 
     def __post_init__(self) -> None:
         if self.num_ants < 1 or self.archive_size < 2:

@@ -99,7 +99,7 @@ class PathEACO(Strategy):
     """Path-planning colony; ``num_ants`` walks per iteration."""
 
     num_ants: int = 32
-    problem_kind = "path"
+    problem_kind: ClassVar[str] = "path"
 
     def default_params(self, problem: PathPlanning | None = None) -> PathParams:
         return as_params(PathParams())
