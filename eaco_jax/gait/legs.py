@@ -110,3 +110,30 @@ def leg_set(spec) -> LegSet:
         front=np.where(pos_a[:, 0] > pos_a[:, 0].mean(), 1.0, -1.0).astype(np.float32),
         role_index=np.asarray(roles), role_sign=np.asarray(signs, np.float32),
         stand_height=height)
+
+
+@functools.lru_cache(maxsize=16)
+def arm_swing(spec) -> tuple[tuple[int, float], ...]:
+    """``(joint index, sign)`` of the spec's ``arm_swing_joints`` (left, right; empty without
+    them): the sign makes a positive swing move a hanging arm backward, from the joint's axis
+    (about the torso's y axis) in the standing pose."""
+    import mujoco
+
+    from eaco_jax.gait.robot import stand_qpos
+
+    if not spec.arm_swing_joints:
+        return ()
+    model = mujoco.MjModel.from_xml_path(spec.xml_path)
+    data = mujoco.MjData(model)
+    data.qpos[:] = stand_qpos(spec, model)
+    mujoco.mj_kinematics(model, data)
+    torso = np.asarray(data.xmat[model.body(spec.torso_body).id]).reshape(3, 3)
+    out = []
+    for name in spec.arm_swing_joints:
+        axis = torso.T @ np.asarray(data.xaxis[model.joint(name).id])
+        if abs(axis[1]) < 0.9:
+            raise ProblemError(f"robot {spec.name}: arm_swing_joints {name!r} does not turn "
+                               "about the torso's y axis (sideways) in the standing pose; name "
+                               "the shoulder-pitch joints")
+        out.append((spec.joint_names.index(name), float(np.sign(axis[1]))))
+    return tuple(out)

@@ -72,6 +72,8 @@ class RobotSpec:
     coupled_joints: tuple[tuple[str, str], ...] = ()  # (leader, follower): one motor, equal angle
     motor_tolerances: tuple[tuple[str, float], ...] = ()  # datasheet spread (fraction)
     force_limit: tuple[float, ...] = ()  # per actuator: the MJCF's |forcerange| (inf: unlimited)
+    feet: tuple[str, ...] = ()  # bodies or sites ending the leg chains (default: foot_geoms')
+    arm_swing_joints: tuple[str, ...] = ()  # (left, right) joints the biped's arm swing moves
     source: str = ""  # absolute path of the spec file
     digest: str = ""  # sha256 of the spec file and its MJCF (with included files)
 
@@ -311,6 +313,9 @@ def _check_model(model, raw: dict[str, Any], names: list[str], where: str) -> No
     for i, g in enumerate(raw["foot_geoms"]):
         if not exists(mujoco.mjtObj.mjOBJ_GEOM, g):
             raise ProblemError(f"{where}: foot_geoms[{i}] {g!r} is not a geom of the MJCF")
+    for i, f in enumerate(raw.get("feet", [])):
+        if not (exists(mujoco.mjtObj.mjOBJ_BODY, f) or exists(mujoco.mjtObj.mjOBJ_SITE, f)):
+            raise ProblemError(f"{where}: feet[{i}] {f!r} is not a body or site of the MJCF")
 
 
 def _check_stance(model, spec: RobotSpec, where: str) -> None:
@@ -367,6 +372,8 @@ def load_robot(robot: str | Path) -> RobotSpec:
                                f"solver.{accuracy}.timestep {step}")
     _need(raw, "torso_body", "str", where)
     _need(raw, "foot_geoms", "names", where)
+    feet = _typed(raw["feet"], "feet", "names", where) if "feet" in raw else []
+    arms = _arm_swing_joints(raw, names, gait, where)
     numbers = {k: float(_need(raw, k, "number", where))
                for k in ("nominal_torso_height", "fall_height", "fall_tilt_deg")}
     if not 0.0 < numbers["fall_tilt_deg"] <= 180.0 or numbers["nominal_torso_height"] <= 0:
@@ -419,10 +426,28 @@ def load_robot(robot: str | Path) -> RobotSpec:
         force_limit=tuple(force),
         source=str(path),
         digest=spec_digest(path, xml),
+        feet=tuple(feet),
+        arm_swing_joints=arms,
         **_motor_fields(raw, where),
     )
     _check_stance(model, spec, where)
     return spec
+
+
+def _arm_swing_joints(raw: dict[str, Any], names: list[str], gait: str,
+                      where: str) -> tuple[str, ...]:
+    """The optional ``arm_swing_joints``: a biped's left and right shoulder-pitch joints, which
+    the walk engine swings against the legs (none: the arms hold their standing pose)."""
+    if "arm_swing_joints" not in raw:
+        return ()
+    arms = _typed(raw["arm_swing_joints"], "arm_swing_joints", "names", where)
+    if gait != "biped" or len(arms) != 2:
+        raise ProblemError(f"{where}: arm_swing_joints must be two joint names, left then "
+                           "right, on a biped")
+    for i, j in enumerate(arms):
+        if j not in names:
+            raise ProblemError(f"{where}: arm_swing_joints[{i}] {j!r} is not in joint_names")
+    return tuple(arms)
 
 
 def _motor_fields(raw: dict[str, Any], where: str) -> dict[str, Any]:

@@ -41,7 +41,7 @@ import numpy as np
 from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.gait.ik import leg_ik
 from eaco_jax.gait.ik_generic import solve
-from eaco_jax.gait.legs import leg_set
+from eaco_jax.gait.legs import ROLES, arm_swing, leg_set
 
 RAMP_TIME = 1.0
 """Seconds over which the gait amplitudes grow from the standing pose."""
@@ -205,12 +205,17 @@ def _biped_targets(
     # the torso starts facing +x; the feet step along the desired heading plus the offset
     cdir, sdir = jnp.cos(heading + p.direction), jnp.sin(heading + p.direction)
     out = jnp.asarray(spec.stand_ctrl, jnp.float32)
-    names = spec.joint_names
+    legs = _biped_legs(spec)
+    if legs.joint_index.shape[1] != 6:
+        raise ConfigError(f"robot {spec.name}: the analytic leg IK needs 6 joints per leg "
+                          "(hip yaw, roll, pitch, knee, ankle pitch, roll); use ik='generic'")
+    leg_of = {float(side): k for k, side in enumerate(legs.side.tolist())}
+    arms = arm_swing(spec)
     # One motor drives both HipYawPitch joints (robots/nao.xml): the feet yaw by +psi (left) and
     # -psi (right) relative to the torso, which turns the body by the stance foot's yaw change.
     xi_l, xi_r = _foot(phase_l, p.duty_ratio)[0], _foot(phase_r, p.duty_ratio)[0]
     psi = p.turn_rate * p.duty_ratio * p.period * ramp * (xi_l - xi_r) / 2.0
-    for side, phase, sign in (("L", phase_l, 1.0), ("R", phase_r, -1.0)):
+    for i, (phase, sign) in enumerate(((phase_l, 1.0), (phase_r, -1.0))):
         xi, lift, bump = _foot(phase, p.duty_ratio)
         along = s * xi
         ankle_x = along * cdir
@@ -226,12 +231,12 @@ def _biped_targets(
         ankle_pitch = q[4] + p.ankle_pitch_comp * ramp - slope  # sole parallel to the floor
         ankle_roll = q[5] + sign * p.ankle_roll_comp * ramp
         values = (psi, hip_roll, hip_pitch, q[3], ankle_pitch, ankle_roll)  # RHipYawPitch: -z
-        for joint, v in zip(("HipYawPitch", "HipRoll", "HipPitch", "KneePitch", "AnklePitch",
-                             "AnkleRoll"), values, strict=True):
-            out = out.at[names.index(side + joint)].set(v)
-        # the arm swings against the leg on its own side
-        i = names.index(side + "ShoulderPitch")
-        out = out.at[i].add(2.0 * p.arm_swing * ramp * xi)
+        # the leg chain's joints, torso to foot: yaw, roll, pitch, knee, ankle pitch, roll
+        for j, v in zip(legs.joint_index[leg_of[sign]].tolist(), values, strict=True):
+            out = out.at[j].set(v)
+        if arms:  # the arm swings against the leg on its own side
+            j, arm_sign = arms[i]
+            out = out.at[j].add(arm_sign * 2.0 * p.arm_swing * ramp * xi)
     lo = jnp.asarray(spec.joint_lower, jnp.float32)
     hi = jnp.asarray(spec.joint_upper, jnp.float32)
     return jnp.clip(out, lo, hi)
@@ -317,7 +322,7 @@ def _biped_targets_generic(
                       for k, i in enumerate(order)])
     q = _solve_legs(legs, targets, rots)
     out = jnp.asarray(spec.stand_ctrl, jnp.float32)
-    names = spec.joint_names
+    arms = arm_swing(spec)
     for k, i in enumerate(order):
         qk = q[k]
         for r in range(legs.role_index.shape[1]):
@@ -325,9 +330,9 @@ def _biped_targets_generic(
             if j >= 0:
                 qk = qk.at[j].add(float(legs.role_sign[k, r]) * feet.offsets[i, r])
         out = out.at[legs.joint_index[k]].set(qk)
-        arm = "LR"[i] + "ShoulderPitch"
-        if arm in names:  # the arm swings against the leg on its side
-            out = out.at[names.index(arm)].add(feet.arm[i])
+        if arms:  # the arm swings against the leg on its side
+            j, arm_sign = arms[i]
+            out = out.at[j].add(arm_sign * feet.arm[i])
     lo = jnp.asarray(spec.joint_lower, jnp.float32)
     hi = jnp.asarray(spec.joint_upper, jnp.float32)
     return jnp.clip(out, lo, hi)
@@ -416,11 +421,17 @@ def control_sequence(
 
 
 def stand_pose(spec, slope_deg: float = 0.0) -> np.ndarray:
-    """The pose every gait starts from: the standing keyframe, soles parallel to the floor."""
+    """The pose every gait starts from: the standing keyframe, a biped's soles parallel to the
+    floor (each leg's ankle-pitch joint, :data:`legs.ROLES`, turned by the slope)."""
     pose = np.asarray(spec.stand_ctrl, np.float64).copy()
-    if spec.gait == "biped":
-        for side in "LR":
-            pose[spec.joint_names.index(side + "AnklePitch")] -= math.radians(slope_deg)
+    if spec.gait == "biped" and slope_deg != 0.0:
+        legs = leg_set(spec)
+        r = ROLES.index("ankle_pitch")
+        for k in range(len(legs.feet)):
+            j = int(legs.role_index[k, r])
+            if j >= 0:
+                pose[int(legs.joint_index[k, j])] -= float(legs.role_sign[k, r]) * math.radians(
+                    slope_deg)
     return pose
 
 
