@@ -94,3 +94,15 @@ def test_minimize_checkpoint_resume_is_bit_identical(scene, tmp_path):
     assert resumed.iterations == 20
     np.testing.assert_array_equal(np.asarray(resumed.best_cost), np.asarray(full.best_cost))
     np.testing.assert_array_equal(resumed.best_solution, full.best_solution)
+
+
+def test_elitism_keeps_the_best_parent_when_every_child_dies(scene):
+    ga = PathGA(num_ants=8, elites=1)
+    state = ga.init(jax.random.key(0), scene)
+    sols, state = ga.ask(jax.random.key(1), state, scene)
+    costs = scene.evaluate(sols)
+    state, _ = ga.tell(state, sols, costs, scene)
+    dead = jnp.full_like(sols, START)  # never reaches the goal: +inf
+    state, _ = ga.tell(state, dead, scene.evaluate(dead), scene)
+    assert float(jnp.min(state.pop_cost)) == float(jnp.min(costs))
+    assert np.isfinite(np.asarray(scene.evaluate(state.pop))).sum() == 1
