@@ -153,16 +153,18 @@ def test_trials_and_export_are_printed(gait_runs, tmp_path):
     assert t["fall_rate_ci95"] == pytest.approx([lo, hi])
     lines = res_a.stdout.strip().splitlines()
     assert lines[-2].startswith("nao (native, 0.5 s): speed ")
-    assert lines[-1] == (
-        f"trials: 3 worlds, {t['falls']} fall{'' if t['falls'] == 1 else 's'} "
+    assert lines[-1].startswith(
+        f"trials (test stream): 3 worlds, {t['falls']} fall{'' if t['falls'] == 1 else 's'} "
         f"({100 * t['falls'] / 3:.1f}%, 95% CI {100 * lo:.1f}-{100 * hi:.1f}%), speed "
-        f"{t['speed_mps_mean']:.3f} +/- {t['speed_mps_ci95']:.3f} m/s (mean, 95% CI)")
+        f"{t['speed_mps_mean']:.3f} +/- {t['speed_mps_ci95']:.3f} m/s (mean, 95% CI); "
+        "constraints (worst world): ")
     npz = tmp_path / "run.npz"
     res = CliRunner().invoke(app, ["gait-eval", str(out_a / "best_gait.json"), "--backend",
                                    "native", "--trials", "2", "--export", str(npz)])
     assert res.exit_code == 0, (res.output, res.exception)
     lines = res.stdout.strip().splitlines()
-    assert lines[-2].startswith("trials: 2 worlds, ") and lines[-1] == f"export: wrote {npz}"
+    assert lines[-2].startswith("trials (test stream): 2 worlds, ")
+    assert lines[-1] == f"export: wrote {npz}"
     assert npz.is_file()
 
 

@@ -1039,7 +1039,14 @@ def _warn_feasibility(state: State, feasible: np.ndarray, f: np.ndarray, problem
     if v is None:
         return
     claimed = np.asarray(v) <= 0
-    if np.any(claimed & ~np.asarray(feasible) & np.isfinite(f)):
+    if np.any(claimed & ~np.asarray(feasible) & np.isfinite(f)) and getattr(
+            problem, "stochastic", False):
+        warnings.warn(
+            f"{getattr(problem, 'name', '')!r}: the best, feasible in the randomised worlds it "
+            "was evaluated in, violates a constraint in the re-check's worlds (a robust "
+            "search's best is noisy: choose among finalists on more worlds, e.g. eaco gait "
+            "--finalists)", stacklevel=3)
+    elif np.any(claimed & ~np.asarray(feasible) & np.isfinite(f)):
         warnings.warn(
             f"{getattr(problem, 'name', '')!r}: a point feasible in the run's precision violates "
             "a constraint when re-checked in float64; run with precision='float64' (or 'auto')",

@@ -17,8 +17,18 @@ score 0). The best gait is then re-simulated and written to ``out``:
 ``init`` warm-starts from a stored gait (``best_gait.json``): the colony then searches a box of
 +/- 15% of each parameter's range around it instead of the full range.
 
+``constrained`` maximises speed under the motor, slip, drift and fall constraints of
+:mod:`eaco_jax.gait.constraints` with the colony's own constraint handling
+(``constraint_method``); the record holds each constraint's value, limit and margin.
+
+Randomised worlds come from three key streams of the run's seed
+(:data:`eaco_jax.gait.worlds.STREAMS`): the search sees the optimisation stream, ``finalists``
+re-evaluates the archive's best gaits in ``select_worlds`` worlds of the selection stream and
+keeps the best, and ``trials`` reports on the test stream, where nothing is chosen.
+
 ``gait-eval`` re-simulates stored parameters (same outputs but the convergence files); robot,
-horizon, direction and slope come from the file unless given.
+horizon, direction and slope come from the file unless given; its ``trials`` use the test
+stream of the file's seed unless ``stream`` / ``seed`` say otherwise.
 """
 
 from __future__ import annotations
@@ -35,6 +45,8 @@ import numpy as np
 
 from eaco_jax.errors import CheckpointError, ProblemError
 from eaco_jax.gait.render import ensure_headless_gl
+from eaco_jax.gait.walk_engine import IK_CHOICES
+from eaco_jax.gait.stats import falls_interval
 from eaco_jax.runs.base import (
     Built,
     RunKind,
@@ -51,6 +63,8 @@ ensure_headless_gl()  # before anything imports mujoco: its GL backend is fixed 
 BACKENDS = ("auto", "mjx", "native")
 IMPLS = ("auto", "jax", "warp")
 AGGREGATES = ("cvar", "worst", "mean")
+CONSTRAINT_METHODS = ("epsilon", "deb", "penalty")
+STREAM_NAMES = ("test", "selection", "optimisation")  # eaco_jax.gait.worlds.STREAMS
 
 
 def _check_robust(robust: int, trials: int, penalty: str | None) -> None:
@@ -68,7 +82,7 @@ INIT_RADIUS = 0.15
 #: field only they would make act is refused with this reason
 FIXED_SWITCHES = {"repair_steps": "no gradient repair on gait problems",
                   "refine_ants": "no SQP refinement on gait problems",
-                  "constraint_method": "gait problems have no constraints"}
+                  "constraint_method": "set by --constraint-method with --constrained"}
 
 METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_time",
                "turn_deg_s")
@@ -133,12 +147,32 @@ class GaitSettings:
     aggregate: str = setting("cvar", "how the worlds' fitness combine", choices=AGGREGATES)
     penalty: str | None = setting(None, "energy-aware fitness: 'power' or 'cot'")
     penalty_weight: float = setting(0.0, "weight of the energy penalty")
-    trials: int = setting(0, "after the search: replay the best gait in this many fresh "
-                          "randomised worlds (seeds disjoint from the search)")
+    ik: str = setting("auto", "biped leg IK: analytic (the NAO's leg geometry), generic "
+                      "(any leg chain, damped least squares on the MJCF) or auto",
+                      choices=IK_CHOICES)
+    trials: int = setting(0, "after the search: replay the best gait in this many randomised "
+                          "worlds of the test stream (nothing is chosen on them)")
+    constrained: bool = setting(False, "maximise speed under the motor (ten minutes' "
+                                "endurance, current limit), slip, drift and fall constraints "
+                                "(docs/gait_constraints.md)")
+    constraint_method: str = setting("epsilon", "the colony's constraint handling with "
+                                     "--constrained", choices=CONSTRAINT_METHODS)
+    finalists: int = setting(0, "after the search: re-evaluate the archive's best gaits (this "
+                             "many) in selection-stream worlds and keep the best; 0 = the "
+                             "search's best")
+    select_worlds: int = setting(64, "selection-stream worlds per finalist (with --finalists)")
 
     def __post_init__(self) -> None:
-        check_settings(self, "ants", "iterations", "max_evaluations")
+        from eaco_jax.errors import ConfigError
+
+        check_settings(self, "ants", "iterations", "max_evaluations", "select_worlds")
         _check_robust(self.robust, self.trials, self.penalty)
+        _check_robust(self.finalists, 0, None)
+        if self.constraint_method != "epsilon" and not self.constrained:
+            raise ConfigError(f"--constraint-method {self.constraint_method} needs "
+                              "--constrained (an unconstrained gait search has no violation)")
+        if self.constrained and self.penalty is not None:
+            raise ConfigError("--constrained replaces the energy penalty: drop --penalty")
         object.__setattr__(self, "robot", absolute_spec(self.robot))
 
 
@@ -154,9 +188,15 @@ class GaitEvalSettings:
                                  "a display or a GPU exists)")
     impl: str = setting("auto", "MJX implementation: warp (MuJoCo Warp, CUDA), jax, or auto",
                         choices=IMPLS)
-    trials: int = setting(0, "replay under this many randomised worlds (seeds disjoint from "
-                          "optimisation); adds 'trials' to the record")
+    trials: int = setting(0, "replay under this many randomised worlds of --stream; adds "
+                          "'trials' to the record")
+    stream: str = setting("test", "key stream of the trials' worlds: test (nothing is chosen "
+                          "on them), selection or optimisation", choices=STREAM_NAMES)
+    seed: int | None = setting(None, "run seed whose stream the trials draw from (default: the "
+                               "file's seed, else 0)")
     accurate: bool = setting(False, "trials with MuJoCo's default solver settings")
+    ik: str | None = setting(None, "biped leg IK: analytic, generic or auto (default: the "
+                             "file's, else auto)")
     export: str | None = setting(None, "write the simulated run to this .npz (ctrl, qpos, qvel, "
                                  "the model's MJCF): it replays on plain mujoco")
 
@@ -277,8 +317,17 @@ def write_video(path: Path, problem: Any, qpos: np.ndarray) -> str | None:
         return None
 
 
-def fitness_history(history: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The driver's cost history turned into fitness (metres walked), plus the rest."""
+def fitness_history(history: dict[str, np.ndarray],
+                    constrained: bool = False) -> dict[str, np.ndarray]:
+    """The driver's cost history turned into fitness (metres walked), plus the rest;
+    ``constrained``: the best speed (Deb's order: least violation first) and its violation."""
+    if constrained:
+        out = {"best_speed": -np.asarray(history["best_f"], np.float64),
+               "best_violation": np.asarray(history["best_violation"], np.float64)}
+        for k in ("diversity", "evaluations", "epsilon"):
+            if k in history:
+                out[k] = np.asarray(history[k])
+        return out
     out = {"best_fitness": -np.asarray(history["best_cost"], np.float64),
            "iter_best_fitness": -np.asarray(history["iter_best_cost"], np.float64),
            "iter_mean_fitness": -np.asarray(history["iter_mean_cost"], np.float64)}
@@ -297,6 +346,8 @@ def _setting(problem: Any) -> dict[str, Any]:
         out["robot_sha256"] = problem.spec.digest
     if problem.turn is not None:
         out["turn"] = problem.turn
+    if problem.ik != "auto":
+        out["ik"] = problem.ik
     return out
 
 
@@ -315,14 +366,15 @@ def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
 def _problem(robot: str, backend: str, horizon: float, direction: float, slope: float,
              impl: str = "auto", robust: int = 0, aggregate: str = "cvar",
              penalty: str | None = None, penalty_weight: float = 0.0,
-             turn: str | None = None) -> Any:
+             turn: str | None = None, seed: int = 0, constrained: bool = False,
+             ik: str = "auto") -> Any:
     from eaco_jax.problems.gait import RobustConfig, make_gait_problem
 
-    cfg = RobustConfig(R=int(robust), aggregate=aggregate) if robust else None
+    cfg = RobustConfig(R=int(robust), aggregate=aggregate, seed=int(seed)) if robust else None
     return make_gait_problem(robot, backend=backend, horizon=float(horizon),
                              direction_deg=float(direction), slope_deg=float(slope), impl=impl,
                              robust=cfg, penalty=penalty, penalty_weight=float(penalty_weight),
-                             turn=turn)
+                             turn=turn, constrained=constrained, ik=ik)
 
 
 def build(s: GaitSettings) -> Built:
@@ -332,7 +384,8 @@ def build(s: GaitSettings) -> Built:
     from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
     problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope, s.impl, s.robust,
-                       s.aggregate, s.penalty, s.penalty_weight, s.turn)
+                       s.aggregate, s.penalty, s.penalty_weight, s.turn, s.seed, s.constrained,
+                       ik=s.ik)
     search = problem
     extra: dict[str, Any] = {"full_problem": problem}
     if s.init is not None:
@@ -346,13 +399,58 @@ def build(s: GaitSettings) -> Built:
     # the simulation is not differentiable: no SQP refinement ants, no gradient repair
     ants = int(s.ants)
     strategy = ContinuousEACO(num_ants=ants, archive_size=max(2, (3 * ants) // 2),
-                              refine_ants=0, repair_steps=0)
+                              refine_ants=0, repair_steps=0,
+                              constraint_method=s.constraint_method)
     params = params_from(strategy, search, s.params, fixed=FIXED_SWITCHES, command="eaco gait")
     return Built(search, strategy, params, budget_of(s, s.iterations), extra=extra)
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
+    if getattr(built.problem, "constrained", False):
+        return {"speed": -float(np.asarray(result.f).reshape(-1)[row]),
+                "violation": float(np.asarray(result.violation).reshape(-1)[row]),
+                "feasible": bool(np.asarray(result.feasible).reshape(-1)[row])}
     return {"fitness": -float(np.asarray(result.best_cost).reshape(-1)[row])}
+
+
+def select_finalists(problem: Any, archive: np.ndarray, k: int, n: int,
+                     seed: int) -> tuple[np.ndarray, dict[str, Any]]:
+    """The best of the archive's first ``k`` gaits (the colony keeps its archive best first)
+    re-evaluated in ``n`` worlds of the selection stream of ``seed``: by Deb's rule (least
+    violation, then speed) for a constrained problem, else by the aggregated fitness.
+    Returns the chosen gait and the ``selection`` record (stream, worlds, per finalist)."""
+    import jax
+    import jax.numpy as jnp
+
+    from eaco_jax.gait.worlds import RobustConfig, stream_key
+
+    cand = np.asarray(archive, np.float32)[:k]
+    cfg = problem.robust or RobustConfig(seed=int(seed))
+    prob = problem.replace(robust=dataclasses.replace(cfg, R=int(n)))
+    worlds = prob.worlds(stream_key(int(seed), "selection", 0), int(n))
+    x = jnp.clip(jnp.asarray(cand), prob.lower, prob.upper)
+    if getattr(prob, "constrained", False):
+        from eaco_jax.gait import constraints as gc
+
+        speed, _, g = jax.jit(prob.constraints)(x, worlds)
+        score, viol = np.asarray(speed, np.float64), np.asarray(gc.violation(g), np.float64)
+    else:
+        res = jax.jit(lambda x, w: prob.rollout(x, w))(x, worlds)
+        score = np.asarray(aggregate_fitness(res["fitness"], cfg), np.float64)
+        viol = np.zeros_like(score)
+    score = np.where(np.isfinite(score), score, -np.inf)
+    best = int(np.lexsort((-score, viol))[0])
+    rows = [{"score": float(a), "violation": float(b)} for a, b in zip(score, viol, strict=True)]
+    return cand[best], {"stream": "selection", "seed": int(seed), "worlds": int(n),
+                        "finalists": rows, "chosen": best,
+                        "score": "speed_mps" if prob.constrained else "fitness"}
+
+
+def aggregate_fitness(fitness: Any, cfg: Any) -> Any:
+    """Per-gait fitness from per-world fitness ``(m, R)`` under ``cfg``'s aggregate."""
+    from eaco_jax.gait.fitness import aggregate
+
+    return aggregate(fitness, cfg.aggregate, cfg.alpha)
 
 
 def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -> dict[str, Any]:
@@ -367,9 +465,13 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
                       checkpointing=checkpointing, params=built.params, **built.budget)
     best = np.asarray(result.best_solution, np.float32)
+    selection = None
+    if s.finalists:
+        best, selection = select_finalists(problem, np.asarray(result.state.archive_x),
+                                           int(s.finalists), int(s.select_worlds), int(s.seed))
     sim = problem.simulate(best, record=True)
     seconds = time.perf_counter() - t0
-    history = fitness_history(result.history)
+    history = fitness_history(result.history, problem.constrained)
     record: dict[str, Any] = {
         **_setting(problem),
         "ants": int(s.ants),
@@ -379,23 +481,34 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
         "stop_reason": result.stop_reason,
         **_metrics(sim),
         "search_fitness": float(-np.asarray(result.best_cost)),
+        **({"selection": selection} if selection is not None else {}),
         "params": problem.params_dict(best),
         "vector": best.tolist(),
         "init": s.init,
         "seconds": seconds,
         "compile_seconds": float(result.compile_seconds),
         "seconds_per_iteration": float(result.seconds_per_iteration),
-        "history_best": history["best_fitness"].tolist(),
+        "history_best": history["best_speed" if problem.constrained
+                                else "best_fitness"].tolist(),
         "out": s.out,
     }
     if "init_vec" in built.extra:
         record["init_fitness"] = problem.simulate(built.extra["init_vec"], record=False)["fitness"]
     if s.robust:
-        record["robust"] = {"R": int(s.robust), "aggregate": s.aggregate}
+        record["robust"] = {"R": int(s.robust), "aggregate": s.aggregate, "seed": int(s.seed),
+                            "stream": "optimisation"}
+    if problem.constrained:
+        record["constraint_method"] = s.constraint_method
+        record["history_violation"] = history["best_violation"].tolist()
+        record["search"] = {"speed": -float(np.asarray(result.f)),
+                            "violation": float(np.asarray(result.violation)),
+                            "feasible": bool(np.asarray(result.feasible))}
+        record["constraints"] = constraints_record(problem, best, int(s.seed), selection)
     if s.trials:
         from eaco_jax.gait.validate import evaluate_trials
 
-        record["trials"] = with_fall_interval(evaluate_trials(problem, best, n=int(s.trials)))
+        record["trials"] = evaluate_trials(problem, best, n=int(s.trials), seed=int(s.seed),
+                                           stream="test")
     if s.out is not None:
         from eaco_jax import plots
         from eaco_jax.outputs import write_history_csv, write_json
@@ -403,9 +516,15 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
         folder = Path(s.out)
         folder.mkdir(parents=True, exist_ok=True)
         write_history_csv(folder / "history.csv", history)
-        plots.convergence(history, folder / "convergence.png",
-                          keys=("best_fitness", "iter_mean_fitness"), ylabel="fitness [m]",
-                          title=f"{problem.name}: fitness ({problem.horizon:g} s horizon)")
+        if problem.constrained:
+            plots.convergence(history, folder / "convergence.png",
+                              keys=("best_speed", "best_violation"),
+                              ylabel="speed [m/s] / violation",
+                              title=f"{problem.name}: constrained ({problem.horizon:g} s)")
+        else:
+            plots.convergence(history, folder / "convergence.png",
+                              keys=("best_fitness", "iter_mean_fitness"), ylabel="fitness [m]",
+                              title=f"{problem.name}: fitness ({problem.horizon:g} s horizon)")
         files = write_trajectory_outputs(
             folder, problem, sim, video_wanted(s.video),
             title=f"{problem.spec.name}: best gait, {sim['speed_mps']:.2f} m/s")
@@ -414,6 +533,30 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
                            "convergence": str(folder / "convergence.png"), **files}
         write_json(folder / "best_gait.json", record)
     return record
+
+
+def constraints_record(problem: Any, best: np.ndarray, seed: int,
+                       selection: dict[str, Any] | None) -> dict[str, Any]:
+    """The kept gait's constraints (value, limit, margin, holds) in the worlds that chose it:
+    the selection stream's (with finalists), else the key-less optimisation worlds that
+    ``host_check`` uses (the nominal world without randomisation)."""
+    if selection is not None:
+        from eaco_jax.gait.worlds import stream_key
+
+        n = int(selection["worlds"])
+        prob = problem.replace(robust=dataclasses.replace(problem.robust or _default_robust(seed),
+                                                          R=n))
+        rep = prob.report(best, prob.worlds(stream_key(seed, "selection", 0), n))
+        return {"stream": "selection", **rep}
+    worlds = problem.worlds() if problem.robust is not None else None
+    return {"stream": "optimisation" if worlds is not None else "nominal",
+            **problem.report(best, worlds)}
+
+
+def _default_robust(seed: int) -> Any:
+    from eaco_jax.gait.worlds import RobustConfig
+
+    return RobustConfig(seed=int(seed))
 
 
 # --------------------------------------------------------------------------- gait-eval
@@ -426,10 +569,14 @@ def build_eval(s: GaitEvalSettings) -> Built:
     direction = float(_stored(data, "direction", "direction_deg") or 0.0)
     slope = float(_stored(data, "slope", "slope_deg") or 0.0)
     turn = _stored(data, "turn")
+    ik = s.ik or _stored(data, "ik") or "auto"
     problem = _problem(str(robot), s.backend, float(horizon), direction, slope, s.impl,
-                       turn=turn)
+                       turn=turn, ik=str(ik))
     vec = params_vector(data, problem, str(s.params_file))
-    return Built(problem, None, None, {}, extra={"vector": vec})
+    seed = s.seed if s.seed is not None else _stored(data, "seed")
+    if seed is None and isinstance(data.get("optimisation"), dict):
+        seed = data["optimisation"].get("seed")
+    return Built(problem, None, None, {}, extra={"vector": vec, "seed": int(seed or 0)})
 
 
 def run_eval(s: GaitEvalSettings, *, progress: bool = False,
@@ -452,8 +599,8 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
     if s.trials:
         from eaco_jax.gait.validate import evaluate_trials
 
-        record["trials"] = with_fall_interval(
-            evaluate_trials(problem, vec, n=int(s.trials), accurate=s.accurate))
+        record["trials"] = evaluate_trials(problem, vec, n=int(s.trials), accurate=s.accurate,
+                                           seed=built.extra["seed"], stream=s.stream)
     if s.export is not None:
         from eaco_jax.gait.validate import export_run
 
@@ -470,29 +617,34 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
     return record
 
 
-def falls_interval(falls: int, n: int) -> tuple[float, float]:
-    """Exact (Clopper-Pearson) 95% interval of the fall rate from ``falls`` of ``n`` trials."""
-    from scipy.stats import beta
-
-    lo = float(beta.ppf(0.025, falls, n - falls + 1)) if falls > 0 else 0.0
-    hi = float(beta.ppf(0.975, falls + 1, n - falls)) if falls < n else 1.0
-    return lo, hi
-
-
-def with_fall_interval(trials: dict[str, Any]) -> dict[str, Any]:
-    """The trials record with ``fall_rate_ci95``: the exact 95% interval of the fall rate."""
-    return {**trials, "fall_rate_ci95": list(falls_interval(int(trials["falls"]),
-                                                            int(trials["n"])))}
-
-
 def trials_line(trials: dict[str, Any]) -> str:
-    """``trials: N worlds, F falls (x%, 95% CI a-b%), speed m +/- c m/s`` of a trials record."""
+    """``trials (test stream): N worlds, F falls (x%, 95% CI a-b%), speed m +/- c m/s`` of a
+    trials record."""
     n, falls = int(trials["n"]), int(trials["falls"])
     lo, hi = falls_interval(falls, n)
-    return (f"trials: {n} worlds, {falls} fall{'' if falls == 1 else 's'} "
+    stream = trials.get("stream")
+    head = f"trials ({stream} stream)" if stream else "trials"
+    broken = [k for k, row in (trials.get("constraints") or {}).items() if not row["holds"]]
+    tail = ("" if "constraints" not in trials else
+            "; constraints (worst world): " + ("all hold" if not broken else
+                                                 "violated " + ", ".join(broken)))
+    return (f"{head}: {n} worlds, {falls} fall{'' if falls == 1 else 's'} "
             f"({100 * falls / n:.1f}%, 95% CI {100 * lo:.1f}-{100 * hi:.1f}%), speed "
             f"{trials['speed_mps_mean']:.3f} +/- {trials['speed_mps_ci95']:.3f} m/s "
-            "(mean, 95% CI)")
+            "(mean, 95% CI)" + tail)
+
+
+def constraints_line(c: dict[str, Any]) -> str:
+    """``constraints (stream, n worlds): feasible | violated: ...`` with each constraint's value
+    against its limit."""
+    parts = []
+    for name, row in c["constraints"].items():
+        mark = "ok" if row["holds"] else "VIOLATED"
+        parts.append(f"{name} {row['value']:.3g} (limit {row['limit']:.3g} {row['unit']}, "
+                     f"{mark})")
+    state = "all hold" if c["feasible"] else f"violation {c['violation']:.3g}"
+    return (f"constraints ({c['stream']}, {c['worlds']} world{'s' if c['worlds'] != 1 else ''}"
+            f"): {state}; " + "; ".join(parts))
 
 
 def motors_line(q: dict[str, Any]) -> str:
@@ -532,6 +684,8 @@ def summary(record: dict[str, Any]) -> str:
     q = record.get("quality") or {}
     if "motors" in q:
         lines.append(motors_line(q))
+    if record.get("constraints"):
+        lines.append(constraints_line(record["constraints"]))
     if record.get("trials"):
         lines.append(trials_line(record["trials"]))
     if record.get("export"):
