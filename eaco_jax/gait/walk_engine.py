@@ -147,10 +147,11 @@ def stand_hip_height(spec) -> float:
         leg_set(spec).stand_height)
 
 
-def bounds(spec) -> tuple[np.ndarray, np.ndarray]:
-    """Parameter bounds ``(lower, upper)`` of the gait generator for this robot."""
+def bounds(spec, ik: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+    """Parameter bounds ``(lower, upper)`` of the gait generator for this robot (a biped's
+    with the leg IK ``ik``, :func:`uses_analytic_ik`)."""
     if spec.gait == "biped":
-        if uses_analytic_ik(spec):
+        if uses_analytic_ik(spec, ik):
             return LOWER, UPPER
         scale = np.array([stand_hip_height(spec) / REF_HIP_HEIGHT if n in BIPED_LENGTHS
                           else 1.0 for n in PARAM_NAMES], np.float32)

@@ -48,7 +48,13 @@ from eaco_jax.gait.rollout_native import (
     native_rollout,
     native_rollout_callback,
 )
-from eaco_jax.gait.walk_engine import bounds, control_sequence, param_names
+from eaco_jax.gait.walk_engine import (
+    IK_CHOICES,
+    bounds,
+    control_sequence,
+    param_names,
+    uses_analytic_ik,
+)
 from eaco_jax.gait.worlds import (
     RobustConfig,
     Worlds,
@@ -85,6 +91,8 @@ class GaitProblem:
     #: "left" / "right": score the heading turned (degrees) instead of the distance walked
     turn: str | None = struct.field(pytree_node=False, default=None)
     impl: str = struct.field(pytree_node=False, default="jax")  # MJX implementation: jax|warp
+    #: the biped's leg IK: "auto", "analytic" (the NAO's) or "generic" (any leg chain)
+    ik: str = struct.field(pytree_node=False, default="auto")
 
     kind: ClassVar[str] = "continuous"
     differentiable = False  # a simulation: no gradient repair / refinement steps
@@ -120,7 +128,7 @@ class GaitProblem:
         """The walk engine's joint targets ``(m, n_steps, nu)`` for gaits ``(m, dim)``."""
         heading = math.radians(self.direction_deg)
         return jax.vmap(lambda p: control_sequence(
-            p, self.n_steps, self.spec, heading, self.slope_deg))(solutions)
+            p, self.n_steps, self.spec, heading, self.slope_deg, self.ik))(solutions)
 
     def trace(self, solutions: jax.Array) -> jax.Array:
         """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` in the nominal world."""
@@ -498,6 +506,7 @@ def make_gait_problem(
     impl: str = "auto",
     turn: str | None = None,
     constrained: bool = False,
+    ik: str = "auto",
 ) -> GaitProblem:
     """A :class:`GaitProblem` for a robot (a shipped one's name: "nao", "ant", ..., or the path
     of a spec .json, see docs/robots.md) and backend ("auto", "mjx",
@@ -506,7 +515,9 @@ def make_gait_problem(
     for an energy-aware fitness; ``turn`` ("left" | "right") scores the heading turned instead
     of the distance; ``impl`` the MJX implementation ("jax", "warp" = MuJoCo Warp on
     CUDA, "auto" = warp where it can run); ``constrained`` maximises speed under the
-    constraints of :mod:`eaco_jax.gait.constraints` (a :class:`ConstrainedGaitProblem`)."""
+    constraints of :mod:`eaco_jax.gait.constraints` (a :class:`ConstrainedGaitProblem`);
+    ``ik`` the biped's leg IK (:func:`~eaco_jax.gait.walk_engine.uses_analytic_ik`: "auto",
+    "analytic" needs the NAO's leg geometry, "generic" works on any leg chain)."""
     if isinstance(robot, RobotSpec):
         spec = robot
     else:
@@ -544,14 +555,18 @@ def make_gait_problem(
         raise ProblemError("a constrained gait search has no energy penalty: drop penalty "
                            "(the constraints replace it)")
     impl = _resolve_impl(impl, backend)
-    lo, hi = bounds(spec)
+    if spec.gait == "biped":
+        uses_analytic_ik(spec, ik)  # a ConfigError line for an unknown or unusable choice
+    elif ik not in IK_CHOICES:
+        raise ProblemError(f"ik must be one of {', '.join(IK_CHOICES)}, got {ik!r}")
+    lo, hi = bounds(spec, ik)
     name = f"gait-{spec.name}"
     cls = ConstrainedGaitProblem if constrained else GaitProblem
     return cls(
         lower=jnp.asarray(lo), upper=jnp.asarray(hi), spec=spec, backend=backend,
         horizon=float(horizon), direction_deg=float(direction_deg), slope_deg=float(slope_deg),
         accuracy=accuracy, name=name, robust=robust, penalty=penalty,
-        penalty_weight=float(penalty_weight), impl=impl, turn=turn)
+        penalty_weight=float(penalty_weight), impl=impl, turn=turn, ik=ik)
 
 
 IMPLS = ("auto", "jax", "warp")

@@ -45,7 +45,6 @@ import numpy as np
 
 from eaco_jax.errors import CheckpointError, ProblemError
 from eaco_jax.gait.render import ensure_headless_gl
-from eaco_jax.gait.walk_engine import IK_CHOICES
 from eaco_jax.gait.stats import falls_interval
 from eaco_jax.runs.base import (
     Built,
@@ -63,6 +62,7 @@ ensure_headless_gl()  # before anything imports mujoco: its GL backend is fixed 
 BACKENDS = ("auto", "mjx", "native")
 IMPLS = ("auto", "jax", "warp")
 AGGREGATES = ("cvar", "worst", "mean")
+IK_CHOICES = ("auto", "analytic", "generic")  # eaco_jax.gait.walk_engine.IK_CHOICES
 CONSTRAINT_METHODS = ("epsilon", "deb", "penalty")
 STREAM_NAMES = ("test", "selection", "optimisation")  # eaco_jax.gait.worlds.STREAMS
 
