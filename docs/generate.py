@@ -33,6 +33,7 @@ def generated() -> str:
     from eaco_jax.runs import kinds
     from eaco_jax.runs.base import settings_table
     from eaco_jax.strategies import ContinuousEACO, GraphEACO, PathEACO
+    from eaco_jax.strategies.path_ga import PathGA
 
     def params(strategy: object, runs: str) -> str:
         defaults = strategy.default_params(None)
@@ -50,6 +51,7 @@ def generated() -> str:
     graph = params(GraphEACO(), "tsp")
     continuous = params(ContinuousEACO(), "constrained, gait")
     path = params(PathEACO(), "path")
+    path_ga = params(PathGA(), "path --strategy path-ga")
     return f"""{BEGIN}
 ## Settings of each run kind
 
@@ -69,6 +71,8 @@ change `rho`, `alpha_g`, `branching`, `restart_after`, `restart_branching`,
 {continuous}
 
 {path}
+
+{path_ga}
 {END}"""
 
 

@@ -159,17 +159,23 @@ def planned_path(
     *,
     title: str = "Planned path",
     optimal: np.ndarray | None = None,
+    ramps: Sequence[Sequence[Sequence[float]]] = (),
+    label: str = "colony best",
 ) -> Drawn:
-    """Obstacles (filled polygons), the planned path and, if given, the optimal one."""
+    """Obstacles (filled polygons), ramps (hatched), the planned path and, if given, the
+    optimal one."""
     from matplotlib.patches import Polygon
 
     fig, ax = plt.subplots(figsize=(5.5, 5.5))
+    for poly in ramps:
+        ax.add_patch(Polygon(np.asarray(poly), closed=True, facecolor="tan", alpha=0.5,
+                             hatch="//", edgecolor="0.4"))
     for poly in obstacles:
         ax.add_patch(Polygon(np.asarray(poly), closed=True, color="0.55", alpha=0.8))
     if optimal is not None:
         ax.plot(optimal[:, 0], optimal[:, 1], "--", color="tab:green", lw=1.2, label="optimal")
     w = np.asarray(waypoints)
-    ax.plot(w[:, 0], w[:, 1], "-o", color="tab:blue", ms=3, lw=1.8, label="colony best")
+    ax.plot(w[:, 0], w[:, 1], "-o", color="tab:blue", ms=3, lw=1.8, label=label)
     ax.plot(*w[0], "s", color="k", ms=8, label="start")
     ax.plot(*w[-1], "*", color="tab:red", ms=12, label="goal")
     ax.set_aspect("equal")

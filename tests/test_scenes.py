@@ -160,3 +160,26 @@ def test_malformed_and_missing_files(tmp_path):
     f.write_text("[1, 2]")
     with pytest.raises(ProblemError, match="expected a JSON object"):
         load_scene(f)
+
+
+def test_cli_plans_a_scene_end_to_end(tmp_path):
+    from typer.testing import CliRunner
+
+    from eaco_jax.cli import app
+
+    scene = tmp_path / "tiny.json"
+    scene.write_text(json.dumps(_tiny().to_dict()))
+    res = CliRunner().invoke(app, ["--no-compile-cache", "path", "--scene", str(scene),
+                                   "--strategy", "path-ga", "--ants", "8", "--iterations", "5",
+                                   "--out", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    rec = json.loads((tmp_path / "out" / "result.json").read_text())
+    p = build_problem(_tiny())
+    assert rec["cost"] == "time_s" and rec["optimum"] == pytest.approx(p.optimum)
+    assert rec["time_s"] >= p.optimum * (1 - 1e-6) and rec["strategy"] == "path-ga"
+    assert (tmp_path / "out" / "path.png").exists()
+    bad = CliRunner().invoke(app, ["path", "--scene", str(_bad(tmp_path, goal=[5.0, 5.0]))])
+    assert bad.exit_code == 2
+    assert [ln for ln in bad.output.splitlines() if ln.strip()] == [
+        "error: tiny: goal (5, 5) lies on obstacle 0 (grown by the clearance 0.3 m); move it or "
+        "the obstacle"]

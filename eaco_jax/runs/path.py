@@ -1,6 +1,9 @@
 """The ``path`` run: plan a collision-free walk among polygonal obstacles (paper section 5).
 
-Outputs in ``out``: ``result.json``, ``convergence.png`` and ``path.png``.
+Without ``--scene`` it plans the shortest route through a random obstacle world (cost: length
+[m]); with ``--scene FILE`` (or ``default``, ``random:SEED``) the least walking time [s]
+through that scene (:mod:`eaco_jax.problems.scenes`). ``--strategy`` picks the path colony or
+the path GA. Outputs in ``out``: ``result.json``, ``convergence.png`` and ``path.png``.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from eaco_jax.runs.base import (
     Built,
     RunKind,
     budget_of,
+    check_choices,
     check_out,
     check_settings,
     entered,
@@ -26,6 +30,10 @@ from eaco_jax.runs.tsp import PARAMS_HELP
 
 @dataclasses.dataclass(frozen=True)
 class PathSettings:
+    scene: str | None = setting(None, "scene JSON file, 'default' or 'random:SEED': plan the "
+                                "least walking time through it (else the shortest route "
+                                "through a random world of --obstacles)")
+    strategy: str = setting("path-eaco", "searcher", choices=("path-eaco", "path-ga"))
     obstacles: int = setting(10, "number of convex obstacles")
     world_seed: int = setting(1, "seed of the random obstacle world")
     ants: int = setting(32, "ants per iteration")
@@ -39,22 +47,28 @@ class PathSettings:
 
     def __post_init__(self) -> None:
         check_settings(self, "obstacles", "ants", "iterations", "max_evaluations")
+        check_choices(self)
 
 
 def build(s: PathSettings) -> Built:
     from eaco_jax.problems.path_planning import random_environment
-    from eaco_jax.strategies.path_eaco import PathEACO
+    from eaco_jax.strategies import get
 
-    radius = (0.06, 0.12) if s.obstacles <= 12 else (0.03, 0.06)
-    problem = random_environment(int(s.obstacles), seed=int(s.world_seed), radius=radius)
-    strategy = PathEACO(num_ants=int(s.ants))
+    if s.scene is not None:
+        from eaco_jax.problems.scenes import scene_problem
+
+        problem = scene_problem(s.scene)
+    else:
+        radius = (0.06, 0.12) if s.obstacles <= 12 else (0.03, 0.06)
+        problem = random_environment(int(s.obstacles), seed=int(s.world_seed), radius=radius)
+    strategy = get(s.strategy, num_ants=int(s.ants))
     params = params_from(strategy, problem, s.params)
     return Built(problem, strategy, params, budget_of(s, s.iterations))
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
-    length = float(np.asarray(result.best_cost).reshape(-1)[row])
-    return {"gap_percent": 100.0 * (length / built.problem.optimum - 1.0)}
+    cost = float(np.asarray(result.best_cost).reshape(-1)[row])
+    return {"gap_percent": 100.0 * (cost / built.problem.optimum - 1.0)}
 
 
 def run(s: PathSettings, *, progress: bool = False, checkpointing: Any = None) -> dict[str, Any]:
@@ -69,14 +83,17 @@ def run(s: PathSettings, *, progress: bool = False, checkpointing: Any = None) -
                           checkpointing=checkpointing, params=built.params, **built.budget)
     best = np.asarray(result.best_solution)
     waypoints = problem.waypoints(best)
-    length = float(result.best_cost)
+    cost = float(result.best_cost)
+    timed = s.scene is not None
     record: dict[str, Any] = {
         "problem": problem.name,
-        "obstacles": int(s.obstacles),
+        "strategy": s.strategy,
+        "cost": "time_s" if timed else "length_m",
+        "obstacles": len(problem.scene.obstacles) if timed else int(s.obstacles),
         "nodes": problem.n,
-        "length": length,
+        "length": float(np.sum(np.linalg.norm(np.diff(waypoints, axis=0), axis=1))),
         "optimum": problem.optimum,
-        "gap_percent": 100.0 * (length / problem.optimum - 1.0),
+        "gap_percent": 100.0 * (cost / problem.optimum - 1.0),
         "waypoints": waypoints.tolist(),
         "iterations": result.iterations,
         "evaluations": int(result.evaluations),
@@ -85,6 +102,10 @@ def run(s: PathSettings, *, progress: bool = False, checkpointing: Any = None) -
         "seconds_per_iteration": result.seconds_per_iteration,
         "history_best": result.history["best_cost"].tolist(),
     }
+    if timed:
+        record["time_s"] = cost
+        record["optimal_waypoints"] = np.asarray(problem.coords)[
+            list(problem.optimal_route)].tolist()
     if s.out is not None:
         from eaco_jax import plots
         from eaco_jax.outputs import write_json
@@ -92,15 +113,28 @@ def run(s: PathSettings, *, progress: bool = False, checkpointing: Any = None) -
         folder = Path(s.out)
         record["out"] = str(folder)
         write_json(folder / "result.json", record)
+        unit = "walking time [s]" if timed else "path length"
         plots.convergence(result.history, folder / "convergence.png", optimum=problem.optimum,
-                          title=f"EACO path planning, {problem.name}", ylabel="path length")
-        plots.planned_path(problem.obstacles, waypoints, folder / "path.png",
-                           title=f"{problem.name}: length {length:.3f} "
-                                 f"(optimum {problem.optimum:.3f})")
+                          title=f"{s.strategy} path planning, {problem.name}", ylabel=unit)
+        if timed:
+            plots.planned_path([o.polygon for o in problem.scene.obstacles], waypoints,
+                               folder / "path.png",
+                               title=f"{problem.name}: {cost:.2f} s (optimum "
+                                     f"{problem.optimum:.2f} s)",
+                               optimal=np.asarray(record["optimal_waypoints"]),
+                               ramps=[r.polygon for r in problem.scene.ramps])
+        else:
+            plots.planned_path(problem.obstacles, waypoints, folder / "path.png",
+                               title=f"{problem.name}: length {cost:.3f} "
+                                     f"(optimum {problem.optimum:.3f})")
     return record
 
 
 def summary(record: dict[str, Any]) -> str:
+    if record.get("cost") == "time_s":
+        return (f"{record['problem']}: walking time {record['time_s']:.3f} s over "
+                f"{record['length']:.2f} m (time-optimal {record['optimum']:.3f} s, gap "
+                f"{record['gap_percent']:.2f}%)")
     return (f"{record['problem']}: path length {record['length']:.4f} "
             f"(optimum {record['optimum']:.4f}, gap {record['gap_percent']:.2f}%)")
 
