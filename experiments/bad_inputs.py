@@ -422,6 +422,8 @@ def main() -> None:
 
     multiobjective_rows()  # multi-objective mode (issue 30)
 
+    scene_rows()  # scenes and walking-time routes (issue 32)
+
     lines = [
         "# Bad inputs and faults, and what each gets now",
         "",
@@ -453,6 +455,42 @@ def main() -> None:
     out.write_text("\n".join(lines))
     print(f"{len(ROWS) + 4} rows -> {out}")
 
+
+
+def scene_rows() -> None:
+    """Scenes for walking-time route planning (issue 32): bad scene files through the CLI."""
+    base = {"name": "s", "bounds": [0, 0, 10, 10], "start": [0.5, 5], "goal": [9.5, 6],
+            "clearance": 0.3, "obstacles": [{"polygon": [[4, 4], [6, 4], [6, 6], [4, 6]],
+                                             "height": 0.5}], "ramps": []}
+
+    def scene(name: str, **change: object) -> str:
+        f = TMP / f"scene_{name}.json"
+        f.write_text(json.dumps({**base, **change}))
+        return cli("path", "--scene", str(f), "--iterations", "2", "--ants", "4", "--quiet")
+
+    walls = [{"polygon": [[8.6, 4.5], [8.8, 4.5], [8.8, 7.5], [8.6, 7.5]], "height": 1},
+             {"polygon": [[8.6, 4.5], [10.5, 4.5], [10.5, 4.7], [8.6, 4.7]], "height": 1},
+             {"polygon": [[8.6, 7.3], [10.5, 7.3], [10.5, 7.5], [8.6, 7.5]], "height": 1}]
+    record("scene: goal inside an obstacle", "CLI", lambda: scene("goal", goal=[5, 5]))
+    record("scene: start on an obstacle (within the clearance)", "CLI",
+           lambda: scene("start", start=[3.8, 5]))
+    record("scene: goal walled in (unreachable)", "CLI", lambda: scene("walled", obstacles=walls))
+    record("scene: obstacle polygon that crosses itself (a bow tie)", "CLI",
+           lambda: scene("bowtie", obstacles=[{"polygon": [[0, 0], [2, 2], [2, 0], [0, 2]],
+                                               "height": 1}]))
+    record("scene: non-convex obstacle", "CLI",
+           lambda: scene("concave", obstacles=[{"polygon": [[3, 3], [7, 3], [5, 4], [5, 7]],
+                                                "height": 1}]))
+    record("scene: ramp steeper than the gait table (12 deg)", "CLI",
+           lambda: scene("steep", ramps=[{"polygon": [[1, 7], [3, 7], [3, 9], [1, 9]],
+                                          "slope_deg": 12}]))
+    record("scene: start off the floor", "CLI", lambda: scene("off", start=[11, 5]))
+    broken = TMP / "scene_broken.json"
+    broken.write_text('{"bounds": [0, 0, 10, 10], ')
+    record("scene file that is not valid JSON", "CLI",
+           lambda: cli("path", "--scene", str(broken), "--quiet"))
+    record("`eaco path --scene missing.json`", "CLI",
+           lambda: cli("path", "--scene", str(TMP / "missing.json"), "--quiet"))
 
 
 def leg_ik_rows() -> None:
