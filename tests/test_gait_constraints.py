@@ -100,6 +100,12 @@ def test_streams_are_disjoint_and_reproducible():
                                       np.asarray(getattr(draws["test"][0], f)))
     assert not np.array_equal(np.asarray(p.worlds(stream_key(4, "test")).friction),
                               seen["test"][:64])
+    # the driver's key picks a batch inside the optimisation stream (the documented derivation)
+    k = jax.random.PRNGKey(9)
+    w0, w1 = np.asarray(jax.random.bits(k, (2,), jnp.uint32))
+    root = jax.random.fold_in(jax.random.PRNGKey(3), STREAMS["optimisation"])
+    want = jax.random.fold_in(jax.random.fold_in(root, w0), w1)
+    np.testing.assert_array_equal(np.asarray(optimisation_key(3, k)), np.asarray(want))
 
 
 @pytest.fixture(scope="module")
