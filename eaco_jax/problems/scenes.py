@@ -606,8 +606,11 @@ def random_scene(seed: int, num_obstacles: int = 10, *, size: float = 10.0,
         if np.max(np.diff(np.append(ang, ang[0] + 2 * np.pi))) > np.pi * 0.9:
             continue
         poly = c + r * np.stack([np.cos(ang), np.sin(ang)], axis=1)
-        obstacles.append(Obstacle(check_polygon(poly, "obstacle"),
-                                  float(np.round(rng.uniform(0.3, 1.2), 3))))
+        try:
+            footprint = check_polygon(poly, "obstacle")
+        except ProblemError:
+            continue  # two corners (nearly) coincide: draw again
+        obstacles.append(Obstacle(footprint, float(np.round(rng.uniform(0.3, 1.2), 3))))
         taken.append((c, r))
     return Scene(name=f"scene{num_obstacles}-seed{seed}", bounds=(0.0, 0.0, size, size),
                  start=tuple(start.tolist()), goal=tuple(goal.tolist()),  # type: ignore[arg-type]
