@@ -69,14 +69,21 @@ def test_params_without_effect_are_refused_by_single_runs(command, tmp_path):
 @pytest.mark.parametrize(("field", "why"), [
     ("p_repair", "no gradient repair on gait problems"),
     ("repair_margin", "no gradient repair on gait problems; no SQP refinement on gait problems"),
-    ("penalty", "gait problems have no constraints"),
 ])
 def test_gait_params_without_effect_name_nothing_gait_cannot_set(field, why, tmp_path):
-    """eaco gait offers no repair_steps, refine_ants or constraint_method: a field only they
-    would make act is refused with the reason, not with 'set that too'."""
+    """eaco gait offers no repair_steps or refine_ants: a field only they would make act is
+    refused with the reason, not with 'set that too'."""
     err = one_line_error(["gait", "--params", f"{field}=0.5", "--iterations", "1", "--out",
                           str(tmp_path)])
     assert err == f"error: --params: {field} has no effect in eaco gait ({why}); drop it"
+
+
+def test_gait_penalty_param_names_the_constraint_method(tmp_path):
+    """The colony's penalty coefficient acts with --constrained --constraint-method penalty,
+    which eaco gait can set: the refusal names that switch."""
+    err = one_line_error(["gait", "--params", "penalty=0.5", "--iterations", "1", "--out",
+                          str(tmp_path)])
+    assert "penalty has no effect unless constraint_method='penalty'" in err
 
 
 def test_a_switch_the_command_can_set_is_still_named():
@@ -152,7 +159,8 @@ def test_trials_and_export_are_printed(gait_runs, tmp_path):
     lo, hi = falls_interval(t["falls"], 3)
     assert t["fall_rate_ci95"] == pytest.approx([lo, hi])
     lines = res_a.stdout.strip().splitlines()
-    assert lines[-2].startswith("nao (native, 0.5 s): speed ")
+    assert lines[-3].startswith("nao (native, 0.5 s): speed ")
+    assert lines[-2].startswith("motors: ")
     assert lines[-1].startswith(
         f"trials (test stream): 3 worlds, {t['falls']} fall{'' if t['falls'] == 1 else 's'} "
         f"({100 * t['falls'] / 3:.1f}%, 95% CI {100 * lo:.1f}-{100 * hi:.1f}%), speed "

@@ -81,8 +81,7 @@ INIT_RADIUS = 0.15
 #: the colony's switches ``eaco gait`` holds fixed (no option sets them) -> why: a --params
 #: field only they would make act is refused with this reason
 FIXED_SWITCHES = {"repair_steps": "no gradient repair on gait problems",
-                  "refine_ants": "no SQP refinement on gait problems",
-                  "constraint_method": "set by --constraint-method with --constrained"}
+                  "refine_ants": "no SQP refinement on gait problems"}
 
 METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_time",
                "turn_deg_s")
