@@ -137,6 +137,23 @@ def write_tsp(name: str, body: str) -> str:
     return str(path)
 
 
+def constrained_gait_rows() -> None:
+    """The constrained gait search and the world key streams (issue 30)."""
+    from eaco_jax.problems.gait import make_gait_problem
+
+    record("`eaco gait --constraint-method deb` without `--constrained`", "CLI",
+           lambda: cli("gait", "--constraint-method", "deb"))
+    record("`eaco gait --constrained --penalty cot`", "CLI",
+           lambda: cli("gait", "--constrained", "--penalty", "cot"))
+    record("`eaco gait --constrained --robot ant` (no electrical motor data)", "CLI",
+           lambda: cli("gait", "--constrained", "--robot", "ant", "--backend", "native"))
+    record("`make_gait_problem(constrained='yes')`", "API",
+           lambda: make_gait_problem("nao", backend="native", constrained="yes"))
+    record("`eaco gait-eval G --stream validation`", "CLI",
+           lambda: cli("gait-eval", "experiments/results/nao_best_gait.json", "--stream",
+                       "validation"))
+
+
 def main() -> None:
     eil51 = load_tsplib("eil51")
     burma = load_tsplib("burma14")
@@ -423,6 +440,8 @@ def main() -> None:
     multiobjective_rows()  # multi-objective mode (issue 30)
 
     scene_rows()  # scenes and walking-time routes (issue 32)
+
+    constrained_gait_rows()  # constrained gait search and world streams (issue 30)
 
     lines = [
         "# Bad inputs and faults, and what each gets now",
