@@ -78,3 +78,58 @@ def test_cec2006_lookup():
     assert cec2006("G2").name == "g10"  # the paper's naming
     with pytest.raises(ProblemError, match="unknown CEC2006 problem"):
         cec2006("g42")
+
+
+def test_a_flax_dataclass_with_the_bounds_as_its_only_leaves():
+    import dataclasses
+
+    prob = ConstrainedProblem(obj, ineq, lower=[0.0, 0.0], upper=[1.0, 2.0], name="p")
+    assert dataclasses.is_dataclass(prob)
+    paths = [jax.tree_util.keystr(k) for k, _ in jax.tree_util.tree_leaves_with_path(prob)]
+    assert paths == [".lower", ".upper"]
+    again = jax.tree.map(lambda x: x * 2, prob)  # unflattened: functions and counts kept
+    assert (again.objective, again.num_inequality, again.num_equality) == (obj, 1, 0)
+    np.testing.assert_array_equal(again.upper, [2.0, 4.0])
+    wider = prob.replace(upper=jnp.array([3.0, 3.0]))
+    assert wider.name == "p" and wider.inequality is ineq and wider.dim == 2
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        prob.name = "q"
+
+
+#: g06's problem hash in float64 as checkpoints stored it while ConstrainedProblem was a
+#: custom pytree node (leaves by flat index); recorded from that class
+G06_HASH_BEFORE_DATACLASS = "344b89779e870cd8"
+
+
+def test_a_checkpoint_stored_before_the_dataclass_resumes(tmp_path):
+    """The problem's leaves gained names (``.lower`` for ``[<flat index 0>]``), which changes
+    its hash; a checkpoint holding the former hash is the same run and resumes bit-identically."""
+    import json
+    import shutil
+
+    import eaco_jax as ea
+    from eaco_jax.driver import checkpoint
+    from eaco_jax.driver.checkpoint import read_meta, tree_hash
+    from eaco_jax.strategies import ContinuousEACO
+
+    with float64():
+        assert tree_hash(cec2006("g06"), by_index=True) == G06_HASH_BEFORE_DATACLASS
+    strategy = ContinuousEACO(num_ants=8, archive_size=10)
+    kw = dict(seed=2, iterations=30, chunk_size=10)
+    unbroken = ea.minimize(cec2006("g06"), strategy, **kw)
+    folder = tmp_path / "g06"
+    ea.minimize(cec2006("g06"), strategy, checkpointing=ea.Checkpointing(folder, every=10), **kw)
+    shutil.rmtree(folder / "30")
+    shutil.rmtree(folder / "20")
+    stored = folder / "10" / "meta" / "metadata"
+    meta = json.loads(stored.read_text())  # as the former writer sealed it
+    meta.pop("meta_digest")
+    meta.pop("problem_hash_by_index")
+    meta["problem"]["hash"] = G06_HASH_BEFORE_DATACLASS
+    stored.write_text(json.dumps({**meta, "meta_digest": checkpoint._meta_digest(meta)}))
+    assert read_meta(folder)["problem"]["hash"] == G06_HASH_BEFORE_DATACLASS
+    resumed = ea.minimize(cec2006("g06"), strategy,
+                          checkpointing=ea.Checkpointing(folder, every=10), **kw)
+    np.testing.assert_array_equal(resumed.x, unbroken.x)
+    np.testing.assert_array_equal(resumed.history["best_cost"], unbroken.history["best_cost"])
+    assert resumed.f == unbroken.f

@@ -79,18 +79,27 @@ def _leaf_bytes(x: Any) -> tuple[str, bytes]:
     return f"{a.dtype}{a.shape}", np.ascontiguousarray(a).tobytes()
 
 
-def tree_hash(tree: Any) -> str:
+def tree_hash(tree: Any, by_index: bool = False) -> str:
     """sha256 over every leaf's path, dtype, shape and bytes.
 
     Only leaf paths enter, not the treedef: a problem's static fields may hold functions
-    whose repr changes from process to process.
+    whose repr changes from process to process. ``by_index``: each path as the flat index a
+    pytree node without field names gives (``[<flat index i>]``), the hash such a node had.
     """
     h = hashlib.sha256()
-    for path, leaf in jax.tree_util.tree_leaves_with_path(tree):
+    for i, (path, leaf) in enumerate(jax.tree_util.tree_leaves_with_path(tree)):
         head, data = _leaf_bytes(leaf)
+        if by_index:
+            path = (jax.tree_util.FlattenedIndexKey(i),)
         h.update(f"{jax.tree_util.keystr(path)}:{head};".encode())
         h.update(data)
     return h.hexdigest()[:16]
+
+
+#: identity entry (not compared itself): the problem's hash by leaf index, which a checkpoint
+#: written while its problem class flattened without field names (ConstrainedProblem before it
+#: was a dataclass) stored as the problem's hash
+HASH_BY_INDEX = "problem_hash_by_index"
 
 
 def run_identity(
@@ -123,6 +132,7 @@ def run_identity(
             "total": int(total),
             "max_evaluations": None if max_evaluations is None else int(max_evaluations),
         },
+        HASH_BY_INDEX: tree_hash(problem, by_index=True),
     }
 
 
@@ -151,6 +161,9 @@ def check_identity(stored: dict[str, Any], current: dict[str, Any], where: Path)
         for name in new:
             if name == "max_evaluations" and name not in old and new[name] is None:
                 continue  # written before the evaluation budget was stored
+            if (section, name) == ("problem", "hash") and old.get(name) is not None \
+                    and old.get(name) == current.get(HASH_BY_INDEX):
+                continue  # the same leaves, hashed before the problem's fields had names
             if old.get(name) != new[name]:
                 raise CheckpointError(
                     f"checkpoint in {where} belongs to a different run ({section} {name}: "

@@ -2,9 +2,9 @@
 
 The user writes ``objective(x) -> scalar``, ``inequality(x) -> (p,)`` (feasible when every
 entry is <= 0) and ``equality(x) -> (q,)`` (feasible when every |entry| <= 1e-4, the CEC2006
-convention); the library vmaps them over the colony. The problem is a pytree:
-the bounds are array leaves, the functions and the name are static, so a jitted driver can
-take it as an argument.
+convention); the library vmaps them over the colony. The problem is a pytree (a ``flax.struct``
+dataclass, as the other problems): the bounds are array leaves, the functions and the name are
+static, so a jitted driver can take it as an argument.
 
 Precision: the problem keeps the dtype of its bounds. Built while 64-bit mode is on
 (``with jax.enable_x64(True):``, see :func:`float64`) everything - bounds, colony archive,
@@ -15,6 +15,7 @@ objective - is float64. That matters for a 1e-4 accuracy on objectives of magnit
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
@@ -22,6 +23,7 @@ from typing import Any, ClassVar
 import jax
 import jax.numpy as jnp
 import numpy as np
+from flax import struct
 
 from eaco_jax.problems.base import Evaluation, ProblemError
 
@@ -48,7 +50,7 @@ def _no_constraints(x: Array) -> Array:
     return jnp.zeros((0,), x.dtype)
 
 
-@jax.tree_util.register_pytree_node_class
+@struct.dataclass(eq=False)
 class ConstrainedProblem:
     """Minimise ``objective(x)`` s.t. ``inequality(x) <= 0``, ``equality(x) == 0``, in a box.
 
@@ -57,49 +59,35 @@ class ConstrainedProblem:
     Construction validates bounds (finite, same length, not reversed) and the functions' output
     shapes (abstractly, with ``jax.eval_shape``) and raises one :class:`ProblemError`.
 
-    It is a pytree: ``lower`` and ``upper`` are leaves; functions, name and ``f_star`` (the
-    known optimum, if any) are static. ``differentiable=False`` marks functions JAX cannot
-    differentiate (a simulator behind a callback): strategies then take no gradient steps.
+    A ``flax.struct`` dataclass: ``lower`` and ``upper`` are leaves; functions, name and
+    ``f_star`` (the known optimum, if any) are static. ``differentiable=False`` marks functions
+    JAX cannot differentiate (a simulator behind a callback): strategies then take no gradient
+    steps. ``num_inequality`` / ``num_equality`` are derived at construction (p and q); given,
+    as unflattening and ``replace`` give them, the fields are taken as already checked.
     """
+
+    objective: Callable[[Array], Array] = struct.field(pytree_node=False)
+    inequality: Callable[[Array], Array] | None = struct.field(pytree_node=False, default=None)
+    equality: Callable[[Array], Array] | None = struct.field(pytree_node=False, default=None)
+    _: dataclasses.KW_ONLY
+    lower: Array
+    upper: Array
+    name: str = struct.field(pytree_node=False, default="constrained")
+    f_star: float | None = struct.field(pytree_node=False, default=None)
+    differentiable: bool = struct.field(pytree_node=False, default=True)
+    num_inequality: int = struct.field(pytree_node=False, default=-1)
+    num_equality: int = struct.field(pytree_node=False, default=-1)
 
     kind: ClassVar[str] = "continuous"
 
-    def __init__(
-        self,
-        objective: Callable[[Array], Array],
-        inequality: Callable[[Array], Array] | None = None,
-        equality: Callable[[Array], Array] | None = None,
-        *,
-        lower: Any,
-        upper: Any,
-        name: str = "constrained",
-        f_star: float | None = None,
-        differentiable: bool = True,
-    ) -> None:
-        fields = _validated(objective, inequality, equality, lower, upper, name, f_star)
-        fields["differentiable"] = bool(differentiable)
+    def __post_init__(self) -> None:
+        if self.num_inequality >= 0 and self.num_equality >= 0:
+            return  # unflattened or replaced: checked when it was built
+        fields = _validated(self.objective, self.inequality, self.equality, self.lower,
+                            self.upper, self.name, self.f_star)
+        fields["differentiable"] = bool(self.differentiable)
         for key, value in fields.items():
             object.__setattr__(self, key, value)
-
-    def __setattr__(self, key: str, value: Any) -> None:
-        raise AttributeError("ConstrainedProblem is immutable")
-
-    # ------------------------------------------------------------------ pytree
-    def tree_flatten(self) -> tuple[tuple[Array, Array], tuple]:
-        aux = (self.objective, self.inequality, self.equality, self.name, self.f_star,
-               self.num_inequality, self.num_equality, self.differentiable)
-        return (self.lower, self.upper), aux
-
-    @classmethod
-    def tree_unflatten(cls, aux: tuple, leaves: tuple) -> ConstrainedProblem:
-        obj = object.__new__(cls)
-        names = ("objective", "inequality", "equality", "name", "f_star", "num_inequality",
-                 "num_equality", "differentiable")
-        for key, value in zip(names, aux, strict=True):
-            object.__setattr__(obj, key, value)
-        object.__setattr__(obj, "lower", leaves[0])
-        object.__setattr__(obj, "upper", leaves[1])
-        return obj
 
     def __repr__(self) -> str:
         return (f"ConstrainedProblem(name={self.name!r}, dim={self.dim}, "
@@ -151,8 +139,7 @@ class ConstrainedProblem:
         if np.any(point < lo - slack) or np.any(point > hi + slack):
             raise ProblemError(f"problem {self.name!r}: point outside its bounds")
         with jax.enable_x64(True):
-            p64 = ConstrainedProblem.tree_unflatten(
-                self.tree_flatten()[1], (jnp.asarray(lo), jnp.asarray(hi)))
+            p64 = self.replace(lower=jnp.asarray(lo), upper=jnp.asarray(hi))
             x64 = jnp.asarray(point, jnp.float64)
             f, v = p64.evaluate_one(x64)
             f, v = float(f), float(v)
