@@ -171,3 +171,22 @@ def test_arm_swing_joint_must_turn_sideways(tmp_path):
         we.joint_targets(jnp.asarray((np.asarray(we.bounds(spec)[0]) +
                                       np.asarray(we.bounds(spec)[1])) / 2),
                          jnp.float32(0.5), spec)
+
+
+def test_robust_worlds_and_trials_without_a_motor_datasheet():
+    from eaco_jax.gait.validate import evaluate_trials
+    from eaco_jax.problems.gait import RobustConfig, make_gait_problem
+
+    problem = make_gait_problem("go2", backend="native", horizon=0.6,
+                                robust=RobustConfig(R=2, seed=5))
+    assert not problem.spec.has_motors
+    x = jnp.asarray(np.stack([problem.lower, problem.upper]) * 0.5 + 0.25 * (
+        problem.lower + problem.upper))
+    f = np.asarray(problem.evaluate(x, jax.random.PRNGKey(1)).f)
+    assert f.shape == (2,) and np.all(np.isfinite(f))
+    trials = evaluate_trials(problem, np.asarray(x[0]), n=4, seed=5)
+    assert trials["n"] == 4 and 0 <= trials["falls"] <= 4
+    assert math.isnan(trials["mean_power_w_mean"])  # energy needs a datasheet
+    assert trials["speed_mps_ci95"] > 0.0  # the worlds differ
+    with pytest.raises(ProblemError, match="energy penalty needs one"):
+        make_gait_problem("go2", backend="native", horizon=0.6, penalty="cot")

@@ -297,9 +297,13 @@ def _world_models(base: mujoco.MjModel, spec: RobotSpec, w: dict[str, np.ndarray
                 getattr(m, name)[...] = v[0]
             cache[key] = m
         models.append(cache[key])
+        if not spec.has_motors:  # no datasheet: no motor model (the MJCF's servos as they are)
+            continue
         motors.append(ql.motor_params({n: v[0] for n, v in fields.items()}, spec, dofs,
                                       base.actuator_ctrlrange, row.stall_scale[0],
                                       row.speed_scale[0], xp=np))
+    if not motors:
+        return models, None
     motor = ql.MotorParams(*(np.stack([m[j] for m in motors]) for j in range(len(motors[0]))))
     return models, motor
 

@@ -65,24 +65,25 @@ def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
     ``fall_trials`` (indices of the trials that fell: the same worlds replay with the same
     ``seed``, ``stream`` and ``batch``), ``speed_mps_mean``, ``speed_mps_ci95``
     (1.96 s / sqrt(n)), ``distance_m_mean``, ``cost_of_transport_mean`` (over trials that
-    walked >= 1 cm), ``mean_power_w_mean``, ``constraints`` (robots with electrical data:
-    :func:`eaco_jax.gait.constraints.table` over the worst world), ``seed``, ``stream``,
-    ``batch``, ``accuracy``, ``backend``.
+    walked >= 1 cm), ``mean_power_w_mean`` (both NaN without a motor datasheet),
+    ``constraints`` (robots with electrical data: :func:`eaco_jax.gait.constraints.table` over
+    the worst world), ``seed``, ``stream``, ``batch``, ``accuracy``, ``backend``.
     """
     if not isinstance(n, int) or n < 1:
         raise ProblemError(f"trials must be a positive integer, got {n!r}")
     if stream not in STREAMS:
         raise ProblemError(f"stream must be one of {', '.join(STREAMS)}, got {stream!r}")
-    if not problem.spec.has_motors:
-        raise ProblemError(f"robot {problem.spec.name!r} has no motor datasheet: no trials")
+    quality = problem.spec.has_motors  # energy figures need a motor datasheet
     cfg = config or problem.robust or RobustConfig()
     prob = problem.replace(robust=cfg, accuracy="accurate" if accurate else problem.accuracy)
     x = _params(prob, params)
     worlds = prob.worlds(stream_key(int(seed), stream, int(batch)), n)
-    res = jax.jit(lambda x, w: prob.rollout(x, w, quality=True))(x, worlds)
+    res = jax.jit(lambda x, w: prob.rollout(x, w, quality=quality))(x, worlds)
     res = jax.tree.map(lambda v: np.asarray(v)[0], res)  # (n, ...)
     speed = res["speed_mps"].astype(np.float64)
-    cot = res["cost_of_transport"][np.isfinite(res["cost_of_transport"])]
+    nan = np.full(n, np.nan)
+    cot = res.get("cost_of_transport", nan)
+    cot = cot[np.isfinite(cot)]
     out = {
         **fall_rate(int(np.sum(res["fell"])), n),
         "fall_trials": [int(i) for i in np.flatnonzero(res["fell"])],
@@ -90,7 +91,7 @@ def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
         "speed_mps_ci95": float(1.96 * np.std(speed, ddof=1) / math.sqrt(n)) if n > 1 else 0.0,
         "distance_m_mean": float(np.mean(res["distance_m"])),
         "cost_of_transport_mean": float(np.mean(cot)) if cot.size else float("nan"),
-        "mean_power_w_mean": float(np.mean(res["mean_power_w"])),
+        "mean_power_w_mean": float(np.mean(res.get("mean_power_w", nan))),
         "turn_deg_s_mean": float(np.mean(res["turn_deg_s"])),
         "seed": int(seed),
         "stream": stream,

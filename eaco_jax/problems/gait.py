@@ -543,9 +543,9 @@ def make_gait_problem(
         raise ProblemError(f"penalty must be None, 'power' or 'cot', got {penalty!r}")
     if penalty_weight < 0:
         raise ProblemError(f"penalty_weight must be >= 0, got {penalty_weight}")
-    if (robust is not None or penalty is not None) and not spec.has_motors:
-        raise ProblemError(f"robot {spec.name!r} has no motor datasheet: robust and energy "
-                           "options need one (nao)")
+    if penalty is not None and not spec.has_motors:
+        raise ProblemError(f"robot {spec.name!r} has no motor datasheet: the energy penalty "
+                           "needs one (nao)")
     if not isinstance(constrained, bool):
         raise ProblemError(f"constrained must be True or False, got {constrained!r}")
     if constrained and ql.mo.motor_model(spec) is None:
