@@ -10,9 +10,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from eaco_jax.problems.path_planning import GOAL, START
-
 Array = jax.Array
+
+#: node numbering of every path problem: the start is node 0, the goal node 1
+START, GOAL = 0, 1
 
 
 def goal_position(path: Array) -> Array:

@@ -24,9 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from eaco_jax.ops.path_ops import GOAL, START
 from eaco_jax.problems.base import ProblemError
-
-START, GOAL = 0, 1
 
 
 def _outward_normals(poly: np.ndarray) -> np.ndarray:

@@ -23,8 +23,15 @@ from flax import struct
 from eaco_jax.errors import ConfigError
 from eaco_jax.ops.path_ops import common_node_crossover, mutate, path_diversity, random_walk
 from eaco_jax.problems.path_planning import GOAL, START
-from eaco_jax.strategies.base import UNIT, Range, State, Strategy, as_params, base_fields, \
-    record_best
+from eaco_jax.strategies.base import (
+    UNIT,
+    Range,
+    State,
+    Strategy,
+    as_params,
+    base_fields,
+    record_best,
+)
 
 Array = jax.Array
 
