@@ -111,8 +111,8 @@ TROT_PARAM_NAMES: tuple[str, ...] = (
 )
 # lengths in units of the standing hip height (TROT_LENGTHS), the rest as they are
 _TROT_BOUNDS = {
-    "step_length": (0.0, 0.6), "body_height": (0.75, 1.05), "duty_ratio": (0.4, 0.75),
-    "period": (0.2, 0.8), "foot_lift": (0.0, 0.3), "stance_width": (-0.1, 0.15),
+    "step_length": (0.0, 1.0), "body_height": (0.75, 1.05), "duty_ratio": (0.35, 0.75),
+    "period": (0.15, 0.8), "foot_lift": (0.0, 0.4), "stance_width": (-0.1, 0.15),
     "direction": (-0.5, 0.5), "body_pitch": (-0.15, 0.15),
 }
 TROT_LENGTHS = ("step_length", "body_height", "foot_lift", "stance_width")
