@@ -119,10 +119,10 @@ def test_second_call_compiles_nothing():
 def test_compile_seconds_count_the_initial_state():
     """The initial state's program is compiled too and counted: with the chunk still
     compiled in this process and the initialiser forgotten, a call reports its compile."""
-    from eaco_jax.driver import minimize as driver
+    from eaco_jax.driver import programs
 
     ea.minimize(_problem(), RandomSearch(num_ants=7), seed=0, iterations=8, chunk_size=4)
-    driver._INITS.clear()
+    programs._INITS.clear()
     again = ea.minimize(_problem(), RandomSearch(num_ants=7), seed=0, iterations=8,
                         chunk_size=4)
     assert again.compile_seconds > 0.0

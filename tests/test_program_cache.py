@@ -16,7 +16,7 @@ from test_driver import RandomSearch, Sphere
 
 import eaco_jax as ea
 from eaco_jax.driver import minimize as driver
-from eaco_jax.driver import program_cache
+from eaco_jax.driver import program_cache, programs
 from eaco_jax.problems import load_tsplib
 from eaco_jax.strategies.graph_eaco import GraphEACO
 
@@ -55,7 +55,7 @@ def test_a_second_run_loads_the_program_without_tracing(cache, monkeypatch):
     def no_tracing(*args, **kwargs):
         raise AssertionError("traced although its program is on disk")
 
-    monkeypatch.setattr(driver, "make_chunk_fn", lambda *a, **k: no_tracing)
+    monkeypatch.setattr(programs, "make_chunk_fn", lambda *a, **k: no_tracing)
     monkeypatch.setattr(GraphEACO, "_init", no_tracing)
     loaded = _run(strategy, problem)
     _same(first, plain)
@@ -319,7 +319,7 @@ def test_jax_options_key_the_programs_held_in_process(cache, partitionable, keep
     program_cache.set_folder(None)
     default = _run(strategy, problem)
     jax.config.update("jax_threefry_partitionable", False)
-    getattr(driver, "_INITS" if keep == "_COMPILED" else "_COMPILED").clear()
+    getattr(programs, "_INITS" if keep == "_COMPILED" else "_COMPILED").clear()
     flipped = _run(strategy, problem)
     driver.clear_compiled()
     fresh = _run(strategy, problem)
