@@ -524,6 +524,32 @@ def leg_ik_rows() -> None:
     record("walk engine ik='analytic' for a robot without the NAO's leg geometry (op3)", "API",
            lambda: walk_engine.joint_targets(jnp.zeros(14), jnp.float32(0.0),
                                              load_robot("op3"), ik="analytic"))
+    # Menagerie robots through the walk engines (issue 31): spec feet / arm swing, --ik, penalty
+    from eaco_jax.gait.robot import ROBOTS_DIR
+
+    def op3_spec(**fields: object) -> str:
+        raw = json.loads((ROBOTS_DIR / "op3.json").read_text())
+        raw.update(xml=str(ROBOTS_DIR / raw["xml"]), **fields)
+        path = TMP / "op3_mine.json"
+        path.write_text(json.dumps(raw))
+        return str(path)
+
+    op3_tiny = ["--backend", "native", "--ants", "4", "--iterations", "1", "--horizon", "0.5",
+                "--no-video", "--out", str(TMP / "op3_out")]
+    record("robot spec whose `feet` names a body the MJCF lacks", "file",
+           lambda: cli("gait", "--robot", op3_spec(feet=["l_toe", "r_ank_roll_link"]),
+                       *op3_tiny))
+    record("robot spec whose `arm_swing_joints` names a joint not in joint_names", "file",
+           lambda: cli("gait", "--robot", op3_spec(arm_swing_joints=["l_sho_pitch", "r_arm"]),
+                       *op3_tiny))
+    record("robot spec whose `arm_swing_joints` turn about the wrong axis (shoulder roll)",
+           "file", lambda: cli("gait", "--robot", op3_spec(
+               arm_swing_joints=["l_sho_roll", "r_sho_roll"]), *op3_tiny))
+    record("`eaco gait --robot op3 --ik analytic`", "CLI",
+           lambda: cli("gait", "--robot", "op3", "--ik", "analytic", *op3_tiny))
+    record("`eaco gait --robot go2 --penalty cot` (no motor datasheet)", "CLI",
+           lambda: cli("gait", "--robot", "go2", "--penalty", "cot", "--penalty-weight", "0.1",
+                       *op3_tiny))
 
 
 def limits_rows() -> None:
