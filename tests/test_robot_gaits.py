@@ -190,3 +190,17 @@ def test_robust_worlds_and_trials_without_a_motor_datasheet():
     assert trials["speed_mps_ci95"] > 0.0  # the worlds differ
     with pytest.raises(ProblemError, match="energy penalty needs one"):
         make_gait_problem("go2", backend="native", horizon=0.6, penalty="cot")
+
+
+@pytest.mark.parametrize("robot,ankle", [("nao", "LAnklePitch"), ("op3", "l_ank_pitch")])
+def test_joint_angle_plot_shows_each_legs_sagittal_joints(robot, ankle):
+    from eaco_jax.runs.gait import leg_joints
+
+    spec = load_robot(robot)
+    angles, groups = leg_joints({n: np.full(3, i) for i, n in enumerate(spec.joint_names)},
+                                spec)
+    assert groups == ("Hip", "Knee", "Ankle") and len(angles) == 6
+    for group in groups:  # plots.joint_trajectories: a joint goes to each panel it names
+        assert sum(group.lower() in label.lower() for label in angles) == 2
+    label = next(k for k in angles if k.endswith(ankle))
+    assert "ankle" in label.lower() and angles[label][0] == spec.joint_names.index(ankle)

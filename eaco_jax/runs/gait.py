@@ -85,7 +85,6 @@ FIXED_SWITCHES = {"repair_steps": "no gradient repair on gait problems",
 
 METRIC_KEYS = ("fitness", "speed_mps", "distance_m", "fell", "drift_deg", "fall_time",
                "turn_deg_s")
-LEG_PITCH_JOINTS = ("HipPitch", "KneePitch", "AnklePitch")  # not HipYawPitch
 
 
 ROBOT_HELP = ("robot: nao (humanoid), ant (quadruped), op3, go2, or the path of a robot spec "
@@ -283,19 +282,36 @@ def write_trajectory_outputs(folder: Path, problem: Any, sim: dict[str, Any], vi
     from eaco_jax import plots
 
     folder.mkdir(parents=True, exist_ok=True)
-    legs, groups = leg_joints(sim["joints"])
+    legs, groups = leg_joints(sim["joints"], problem.spec)
     files: dict[str, str | None] = {"joint_angles": str(plots.joint_trajectories(
         sim["time"], legs, folder / "joint_angles.png", title=title, groups=groups))}
     files["video"] = write_video(folder / "best_gait.mp4", problem, sim["qpos"]) if video else None
     return files
 
 
-def leg_joints(joints: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
-    """The joints the paper plots (sagittal hip, knee, ankle pitch of both legs) and their groups;
-    robots without such names (the ant) get every joint, grouped by name prefix (hip, ankle)."""
-    pitch = {n: a for n, a in joints.items() if n.endswith(LEG_PITCH_JOINTS)}
-    if pitch:
-        return pitch, ("Hip", "Knee", "Ankle")
+def leg_joints(joints: dict[str, np.ndarray],
+               spec: Any) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
+    """The joints the paper plots and their groups: a biped's sagittal hip, knee and ankle
+    joints of both legs (each leg chain's hip-pitch joint, the joints after it and its
+    ankle-pitch joint, found by axis: :mod:`eaco_jax.gait.legs`), labelled so the group's name
+    is in the label; other robots (quadrupeds) get every joint, grouped by name prefix."""
+    if spec.gait == "biped":
+        from eaco_jax.gait.legs import ROLES, leg_set
+
+        legs = leg_set(spec)
+        hip, ankle = ROLES.index("hip_pitch"), ROLES.index("ankle_pitch")
+        out: dict[str, np.ndarray] = {}
+        for k, names in enumerate(legs.joint_names):
+            first, last = int(legs.role_index[k, hip]), int(legs.role_index[k, ankle])
+            if first < 0 or last <= first:
+                continue
+            for i in range(first, last + 1):
+                group = "Hip" if i == first else "Ankle" if i == last else "Knee"
+                name = names[i]
+                out[name if group.lower() in name.lower() else f"{group}: {name}"] = (
+                    joints[name])
+        if out:
+            return out, ("Hip", "Knee", "Ankle")
     return dict(joints), tuple(dict.fromkeys(n.split("_")[0] for n in joints))
 
 
