@@ -1,7 +1,7 @@
 """The package's layers import only downwards, and no modules import each other in a loop.
 
-Layers (ARCHITECTURE.md): foundation <- ops, gait (with the robot spec loader) <- problems <- strategies <- driver
-<- runs <- sweep <- cli. Every import counts, also one inside a function.
+Layers (ARCHITECTURE.md): foundation <- ops, gait (with the robot spec loader) <- problems <-
+strategies <- driver <- runs <- sweep <- cli. Every import counts, also one inside a function.
 """
 
 from __future__ import annotations
