@@ -454,6 +454,8 @@ def main() -> None:
         "| tried | via | what it gets now |",
         "|---|---|---|",
         *[f"| {w} | {h} | {t} |" for w, h, t in ROWS],
+        "| Ctrl-C while `eaco` still imports (jax, typer: the first second) | CLI | exit 130: "
+        "interrupted |",
         "| Ctrl-C during compilation (`eaco tsp ... --checkpoint-dir D`) | CLI | exit 130: "
         "interrupted (SIGINT) after 0 of 3000 iterations; nothing to save yet (start the same "
         "command again) |",
@@ -472,7 +474,7 @@ def main() -> None:
     ]
     out = Path(__file__).resolve().parent.parent / "docs" / "bad_inputs.md"
     out.write_text("\n".join(lines))
-    print(f"{len(ROWS) + 4} rows -> {out}")
+    print(f"{len(ROWS) + 6} rows -> {out}")
 
 
 
