@@ -2,8 +2,9 @@
 
     python experiments/bad_inputs.py            # about two minutes on a CPU
 
-Each row: what was tried, how (API / CLI / file), and the first line the user sees (the
-error's message, a warning, or the relevant result fields for faults that are not errors).
+Each row: what was tried, how (API / CLI / file), the first line the user sees (the
+error's message, a warning, or the relevant result fields for faults that are not errors),
+and the test(s) in tests/ that fail if that behaviour regresses (``none`` where none does).
 """
 
 from __future__ import annotations
@@ -27,13 +28,23 @@ from eaco_jax.cli import app
 from eaco_jax.problems import TSP, ConstrainedProblem, load_tsplib
 from eaco_jax.strategies import GraphEACO
 
-ROWS: list[tuple[str, str, str]] = []
+ROWS: list[tuple[str, str, str, str]] = []
 TMP = Path(tempfile.mkdtemp())
 RUNNER = CliRunner()
 
 
-def record(what: str, how: str, fn: Callable[[], object]) -> None:
-    """Run ``fn``; record its exception's message, its warnings or its return value."""
+def held_by(test: str | tuple[str, ...]) -> str:
+    """The "held by" cell: pytest node ids in backticks, or ``none``."""
+    tests = (test,) if isinstance(test, str) else test
+    if tests == ("none",):
+        return "none"
+    return ", ".join(f"`{t}`" for t in tests)
+
+
+def record(what: str, how: str, fn: Callable[[], object], *,
+           test: str | tuple[str, ...]) -> None:
+    """Run ``fn``; record its exception's message, its warnings or its return value, and
+    ``test``: the pytest node id(s) that hold the row ("none" where no test does)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -45,7 +56,7 @@ def record(what: str, how: str, fn: Callable[[], object]) -> None:
              if issubclass(w.category, UserWarning) and "jax" not in str(w.filename).split(
                  "site-packages")[-1][:5]]
     text = " / ".join([t for t in [text, *notes[:2]] if t])
-    ROWS.append((what, how, text.replace("\n", " ").replace("|", "\\|")[:400]))
+    ROWS.append((what, how, text.replace("\n", " ").replace("|", "\\|")[:400], held_by(test)))
     print(f"- {what}: {text[:160]}")
 
 
@@ -57,15 +68,19 @@ def multiobjective_rows() -> None:
     zdt1 = ea.problems.get("zdt1", dim=5)
     record("`MultiObjectiveProblem` with a `ref_point` of 1 number for 2 objectives", "API",
            lambda: MultiObjectiveProblem(lambda x: x[:2], lower=[0, 0, 0], upper=[1, 1, 1],
-                                         ref_point=[1.0]))
+                                         ref_point=[1.0]),
+           test="tests/test_multiobjective.py::test_bad_problem_is_one_line")
     record("`MultiObjectiveProblem` whose objectives return a scalar", "API",
            lambda: MultiObjectiveProblem(lambda x: x[0], lower=[0, 0], upper=[1, 1],
-                                         ref_point=[1.0, 1.0]))
+                                         ref_point=[1.0, 1.0]),
+           test="tests/test_multiobjective.py::test_bad_problem_is_one_line")
     record("`ea.minimize(problems.get('zdt1'), strategy=ContinuousEACO())`", "API",
-           lambda: ea.minimize(zdt1, strategy=ContinuousEACO(), iterations=2))
+           lambda: ea.minimize(zdt1, strategy=ContinuousEACO(), iterations=2),
+           test="tests/test_multiobjective.py::test_wrong_inputs_are_one_line")
     record("`MOEACO` on a single-objective problem (`sphere`)", "API",
            lambda: ea.minimize(ea.problems.get("sphere", dim=3), strategy=MOEACO(),
-                               iterations=2))
+                               iterations=2),
+           test="tests/test_multiobjective.py::test_wrong_inputs_are_one_line")
 
     def one_objective() -> None:
         s = MOEACO(num_ants=4, archive_size=4)
@@ -74,7 +89,8 @@ def multiobjective_rows() -> None:
         e = zdt1.evaluate(x)
         s.tell(state, x, ea.Evaluation(f=e.f[:, 0], violation=e.violation), zdt1)
     record("`MOEACO.tell` with one objective per ant (`f` of shape (ants,))", "API",
-           one_objective)
+           one_objective,
+           test="tests/test_multiobjective.py::test_wrong_inputs_are_one_line")
 
 
 def cli(*args: str) -> str:
@@ -101,12 +117,15 @@ def robot_spec_rows() -> None:
     tiny = ["--backend", "native", "--ants", "4", "--iterations", "1", "--horizon", "0.5",
             "--out", str(TMP / "walker_out")]
     record("`eaco gait --robot robot.xml` (an MJCF, not a spec)", "CLI",
-           lambda: cli("gait", "--robot", str(folder / "robot.xml"), *tiny))
+           lambda: cli("gait", "--robot", str(folder / "robot.xml"), *tiny),
+           test="tests/test_robot_spec.py::test_bad_robot_arguments")
     record("robot spec naming a joint the MJCF lacks", "file",
            lambda: cli("gait", "--robot", spec(joint_names=["hip_9", *json.loads(
-               (ROBOTS_DIR / "ant.json").read_text())["joint_names"][1:]]), *tiny))
+               (ROBOTS_DIR / "ant.json").read_text())["joint_names"][1:]]), *tiny),
+           test="tests/test_robot_spec.py::test_bad_spec_is_one_line_naming_the_field")
     record("robot spec whose feet are above the hips (upside-down stand_root)", "file",
-           lambda: cli("gait", "--robot", spec(stand_root=[0, 0, 0.55, 0, 1, 0, 0]), *tiny))
+           lambda: cli("gait", "--robot", spec(stand_root=[0, 0, 0.55, 0, 1, 0, 0]), *tiny),
+           test="tests/test_robot_spec.py::test_bad_spec_is_one_line_naming_the_field")
 
     def no_actuator() -> str:
         path = spec()
@@ -115,11 +134,15 @@ def robot_spec_rows() -> None:
         line = next(ln for ln in text.splitlines() if "<motor" in ln and "hip_1" in ln)
         xml.write_text(text.replace(line, ""))
         return cli("gait", "--robot", path, *tiny)
-    record("robot spec whose MJCF has no actuator for a joint", "file", no_actuator)
+    record("robot spec whose MJCF has no actuator for a joint", "file", no_actuator,
+           test="tests/test_robot_spec.py::test_bad_spec_is_one_line_naming_the_field")
     record("robot spec with gait `hexapod`", "file",
-           lambda: cli("gait", "--robot", spec(gait="hexapod"), *tiny))
+           lambda: cli("gait", "--robot", spec(gait="hexapod"), *tiny),
+           test=("tests/test_robot_spec.py::test_bad_spec_is_one_line_naming_the_field",
+                 "tests/test_robot_spec.py::test_cli_bad_spec_is_one_error_line"))
     record("`make_gait_problem(robot=spec)` with `control_dt: \"fast\"`", "API",
-           lambda: make_gait_problem(robot=spec(control_dt="fast"), backend="native"))
+           lambda: make_gait_problem(robot=spec(control_dt="fast"), backend="native"),
+           test="tests/test_robot_spec.py::test_bad_spec_is_one_line_naming_the_field")
 
     def resume_changed() -> str:
         path, ckpt = spec(), TMP / "walker_ckpt"
@@ -128,7 +151,8 @@ def robot_spec_rows() -> None:
         xml = folder / "walker.xml"
         xml.write_text(xml.read_text().replace('density="5.0"', 'density="6.0"', 1))
         return cli("resume", str(ckpt))
-    record("`eaco resume` after the run's robot MJCF changed", "CLI", resume_changed)
+    record("`eaco resume` after the run's robot MJCF changed", "CLI", resume_changed,
+           test="tests/test_robot_spec.py::test_resume_refuses_a_changed_spec")
 
 
 def write_tsp(name: str, body: str) -> str:
@@ -142,16 +166,49 @@ def constrained_gait_rows() -> None:
     from eaco_jax.problems.gait import make_gait_problem
 
     record("`eaco gait --constraint-method deb` without `--constrained`", "CLI",
-           lambda: cli("gait", "--constraint-method", "deb"))
+           lambda: cli("gait", "--constraint-method", "deb"),
+           test="tests/test_gait_constraints.py::test_constrained_settings_errors")
     record("`eaco gait --constrained --penalty cot`", "CLI",
-           lambda: cli("gait", "--constrained", "--penalty", "cot"))
+           lambda: cli("gait", "--constrained", "--penalty", "cot"),
+           test="tests/test_gait_constraints.py::test_constrained_settings_errors")
     record("`eaco gait --constrained --robot ant` (no electrical motor data)", "CLI",
-           lambda: cli("gait", "--constrained", "--robot", "ant", "--backend", "native"))
+           lambda: cli("gait", "--constrained", "--robot", "ant", "--backend", "native"),
+           test="tests/test_gait_constraints.py::test_constrained_settings_errors")
     record("`make_gait_problem(constrained='yes')`", "API",
-           lambda: make_gait_problem("nao", backend="native", constrained="yes"))
+           lambda: make_gait_problem("nao", backend="native", constrained="yes"),
+           test="none")
     record("`eaco gait-eval G --stream validation`", "CLI",
            lambda: cli("gait-eval", "experiments/results/nao_best_gait.json", "--stream",
-                       "validation"))
+                       "validation"),
+           test="none")
+
+
+#: Interrupts and concurrent command-line runs (exercised in tests/test_interrupt.py, not
+#: here): what was tried, what it gets, the test(s) holding it.
+INTERRUPT_ROWS: list[tuple[str, str, str | tuple[str, ...]]] = [
+    ("Ctrl-C while `eaco` still imports (jax, typer: the first second)", "exit 130: interrupted",
+     "tests/test_interrupt.py::test_ctrl_c_while_the_command_imports_is_one_line"),
+    ("Ctrl-C during compilation (`eaco tsp ... --checkpoint-dir D`)",
+     "exit 130: interrupted (SIGINT) after 0 of 3000 iterations; nothing to save yet (start the "
+     "same command again)", "none"),
+    ("Ctrl-C / SIGTERM during a checkpointed run",
+     "exit 130: interrupted (SIGINT) after 20 of 3000 iterations; checkpoint saved at step 20 in "
+     "D; continue with: eaco resume D",
+     "tests/test_interrupt.py::test_checkpointed_run_saves_and_says_how_to_resume"),
+    ("Ctrl-C without checkpointing",
+     "exit 130: interrupted (SIGINT) after N of M iterations; best so far: L (no checkpoint: "
+     "pass --checkpoint-dir to resume)", "none"),
+    ("the first SIGTERM (or Ctrl-C) during a long chunk",
+     "at once: SIGTERM: stopping after the current chunk (iteration X); send again to stop now; "
+     "at the chunk's end: exit 130: interrupted (SIGTERM) after X of M iterations; checkpoint "
+     "saved ...",
+     ("tests/test_interrupt.py::test_first_sigterm_during_a_long_chunk_says_so_at_once",
+      "tests/test_interrupt.py::test_checkpointed_run_saves_and_says_how_to_resume")),
+    ("a second `eaco tsp --checkpoint-dir D` while the first runs",
+     "exit 2: error: checkpoint folder D is in use by another run (pid P since T); wait for it "
+     "to finish or use another --checkpoint-dir",
+     "tests/test_interrupt.py::test_second_run_on_the_same_folder_is_refused"),
+]
 
 
 def main() -> None:
@@ -163,15 +220,18 @@ def main() -> None:
     def budget(name: str, n: int) -> str:
         r = ea.minimize(ea.problems.cec2006(name), max_evaluations=n, seed=0)
         return f"charged {int(r.evaluations)} <= {n}; stop_reason={r.stop_reason}"
-    record("`minimize(cec2006('g06'), max_evaluations=5000)`", "API", lambda: budget("g06", 5000))
+    record("`minimize(cec2006('g06'), max_evaluations=5000)`", "API", lambda: budget("g06", 5000),
+           test="tests/test_trust.py::test_max_evaluations_is_a_hard_cap_with_repair_and_refinement")
     record("`max_evaluations=50` (below one iteration's charge)", "API",
-           lambda: ea.minimize(ea.problems.cec2006("g06"), max_evaluations=50))
+           lambda: ea.minimize(ea.problems.cec2006("g06"), max_evaluations=50),
+           test="tests/test_trust.py::test_budget_below_one_iteration_names_the_charge")
 
     def unit_square() -> str:
         xy = np.random.default_rng(0).uniform(0, 1, (200, 2))
         r = ea.minimize(TSP.from_coords(xy), GraphEACO(num_ants=10), seed=0, iterations=20)
         return f"best_cost {float(r.best_cost):.3f} (real distances; was 0 with EUC_2D rounding)"
-    record("`TSP.from_coords` on 200 points in the unit square", "API", unit_square)
+    record("`TSP.from_coords` on 200 points in the unit square", "API", unit_square,
+           test="tests/test_trust.py::test_from_coords_keeps_real_distances_unless_a_rule_is_named")
 
     def long_tours() -> str:
         rng = np.random.default_rng(1)
@@ -181,13 +241,17 @@ def main() -> None:
         tours = np.stack([rng.permutation(60) for _ in range(200)])
         exact = np.array([d[t, np.roll(t, -1)].sum() for t in tours])
         return f"{int((p.evaluate(tours) != exact).sum())} of 200 tour lengths > 2**24 off"
-    record("tours longer than 2**24 (integer distances)", "API", long_tours)
+    record("tours longer than 2**24 (integer distances)", "API", long_tours,
+           test="tests/test_trust.py::test_long_integer_tours_are_exact")
     record("`TSP.evaluate` with a tour of 50 cities on eil51", "API",
-           lambda: eil51.evaluate(np.arange(50)[None]))
+           lambda: eil51.evaluate(np.arange(50)[None]),
+           test="tests/test_trust.py::test_host_evaluate_refuses_non_tours")
     record("`TSP.evaluate` with city id 51 on eil51", "API",
-           lambda: eil51.evaluate(np.r_[np.arange(50), 51][None]))
+           lambda: eil51.evaluate(np.r_[np.arange(50), 51][None]),
+           test="tests/test_trust.py::test_host_evaluate_refuses_non_tours")
     record("distance matrix with integers >= 2**24", "API",
-           lambda: TSP.from_distance_matrix(np.array([[0, 2**25, 1], [2**25, 0, 1], [1, 1, 0]])))
+           lambda: TSP.from_distance_matrix(np.array([[0, 2**25, 1], [2**25, 0, 1], [1, 1, 0]])),
+           test="tests/test_trust.py::test_host_evaluate_refuses_non_tours")
 
     def vessel():
         def f(x):
@@ -205,88 +269,124 @@ def main() -> None:
         r = ea.minimize(vessel(), seed=0, max_evaluations=20_000, precision="float32")
         return (f"f={float(r.f):.4f} violation={float(r.violation):.3g} "
                 f"feasible={bool(r.feasible)}")
-    record("pressure vessel in float32 (`precision='float32'`)", "API", vessel32)
+    record("pressure vessel in float32 (`precision='float32'`)", "API", vessel32,
+           test=("tests/test_trust.py::test_feasibility_is_rechecked_in_float64",
+                 "tests/test_trust.py::test_recheck_refutes_a_point_feasible_only_in_float32"))
 
     def vessel_auto() -> str:
         r = ea.minimize(vessel(), seed=0, max_evaluations=20_000)
         return (f"precision={r.precision} f={float(r.f):.4f} violation={float(r.violation):.3g} "
                 f"feasible={bool(r.feasible)}")
-    record("pressure vessel, default precision", "API", vessel_auto)
+    record("pressure vessel, default precision", "API", vessel_auto,
+           test="tests/test_trust.py::test_feasibility_is_rechecked_in_float64")
 
     def mixed() -> object:
         with ea.problems.float64():
             p = ea.problems.cec2006("g06")
         return ea.minimize(p, seed=0, max_evaluations=500, precision="float32")
-    record("problem built in `float64()`, run with `precision='float32'`", "API", mixed)
+    record("problem built in `float64()`, run with `precision='float32'`", "API", mixed,
+           test="tests/test_trust.py::test_float64_problem_keeps_float64_outside_the_scope")
 
     def outside64() -> str:
         with ea.problems.float64():
             p = ea.problems.cec2006("g06")
         r = ea.minimize(p, seed=0, max_evaluations=500)
         return f"precision={r.precision} (kept float64 outside the scope)"
-    record("problem built in `float64()`, run outside it", "API", outside64)
+    record("problem built in `float64()`, run outside it", "API", outside64,
+           test="tests/test_trust.py::test_float64_problem_keeps_float64_outside_the_scope")
     record("objective NaN everywhere", "API", lambda: ea.minimize(ConstrainedProblem(
         lambda x: jnp.nan * x[0], lower=[0.0, 0.0], upper=[1.0, 1.0], name="broken"),
-        seed=0, iterations=4))
+        seed=0, iterations=4),
+           test="tests/test_trust.py::test_all_nan_objective_is_an_error_naming_it")
 
     # ------------------------------------------------------------ hyper-parameters
     for field, value in (("rho", 1.5), ("q0", 1.5), ("alpha", -1.0), ("beta", float("nan"))):
         record(f"`GraphEACO` with `{field}={value}`", "API", lambda f=field, v=value: ea.minimize(
-            burma, g, params=g.default_params(burma).replace(**{f: v}), iterations=2))
-    record("`--params q0=1.5`", "CLI", lambda: cli("tsp", "burma14", "--params", "q0=1.5"))
-    record("`--params bogus=1`", "CLI", lambda: cli("tsp", "burma14", "--params", "bogus=1"))
-    record("`--params q0=abc`", "CLI", lambda: cli("tsp", "burma14", "--params", "q0=abc"))
+            burma, g, params=g.default_params(burma).replace(**{f: v}), iterations=2),
+               test="tests/test_trust.py::test_graph_params_outside_their_range_are_one_line")
+    record("`--params q0=1.5`", "CLI", lambda: cli("tsp", "burma14", "--params", "q0=1.5"),
+           test="tests/test_trust.py::test_cli_version_info_params_and_budget_flags")
+    record("`--params bogus=1`", "CLI", lambda: cli("tsp", "burma14", "--params", "bogus=1"),
+           test="tests/test_cli_first_hour.py::test_gait_params_are_checked")
+    record("`--params q0=abc`", "CLI", lambda: cli("tsp", "burma14", "--params", "q0=abc"),
+           test="none")
     record("`--params rho=0.1` (no LS defaults: rho unused)", "CLI",
            lambda: cli("tsp", "burma14", "--local-search", "none", "--iterations", "3",
-                       "--quiet", "--params", "rho=0.1"))
+                       "--quiet", "--params", "rho=0.1"),
+           test="tests/test_cli_first_hour.py::test_params_without_effect_are_refused_by_single_runs")
     from eaco_jax.sweep import plan
     base = {"command": "tsp", "args": {"instance": "burma14", "ants": 4, "iterations": 2,
                                        "local_search": "none"}, "seeds": 1}
-    record("sweep cell `{q0: 1.5}`", "sweep", lambda: plan({**base, "cells": [{"q0": 1.5}]}))
+    record("sweep cell `{q0: 1.5}`", "sweep", lambda: plan({**base, "cells": [{"q0": 1.5}]}),
+           test="tests/test_trust.py::test_sweep_cells_checked_against_ranges_naming_the_cell")
     record("sweep cell `{bogus_key: 1}`", "sweep",
-           lambda: plan({**base, "cells": [{"bogus_key": 1}]}))
-    record("sweep cell `{q0: abc}`", "sweep", lambda: plan({**base, "cells": [{"q0": "abc"}]}))
+           lambda: plan({**base, "cells": [{"bogus_key": 1}]}),
+           test="tests/test_trust.py::test_sweep_cells_checked_against_ranges_naming_the_cell")
+    record("sweep cell `{q0: abc}`", "sweep", lambda: plan({**base, "cells": [{"q0": "abc"}]}),
+           test="tests/test_trust.py::test_sweep_cells_checked_against_ranges_naming_the_cell")
     record("sweep cell `{ants: abc}`", "sweep",
-           lambda: plan({**base, "cells": [{"ants": "abc"}]}))
+           lambda: plan({**base, "cells": [{"ants": "abc"}]}),
+           test="tests/test_trust.py::test_sweep_cells_checked_against_ranges_naming_the_cell")
     record("sweep `rho` over 0.05/0.2/0.5 with default switches", "sweep",
-           lambda: plan({**base, "grid": {"rho": [0.05, 0.2, 0.5]}}))
-    record("sweep seeds `[-1]`", "sweep", lambda: plan({**base, "seeds": [-1]}))
+           lambda: plan({**base, "grid": {"rho": [0.05, 0.2, 0.5]}}),
+           test="tests/test_trust.py::test_sweeping_an_unused_param_is_refused_naming_the_switch")
+    record("sweep seeds `[-1]`", "sweep", lambda: plan({**base, "seeds": [-1]}),
+           test="none")
 
     # ------------------------------------------------------------ command line values
     record("`--seed 99999999999999999999`", "CLI",
-           lambda: cli("tsp", "burma14", "--seed", "99999999999999999999"))
-    record("`--ants 1000000000`", "CLI", lambda: cli("tsp", "eil51", "--ants", "1000000000"))
-    record("`--ants 0`", "CLI", lambda: cli("tsp", "burma14", "--ants", "0"))
-    record("`--max-seconds -1`", "CLI", lambda: cli("tsp", "burma14", "--max-seconds", "-1"))
+           lambda: cli("tsp", "burma14", "--seed", "99999999999999999999"),
+           test="tests/test_trust.py::test_cli_version_info_params_and_budget_flags")
+    record("`--ants 1000000000`", "CLI", lambda: cli("tsp", "eil51", "--ants", "1000000000"),
+           test="tests/test_trust.py::test_cli_version_info_params_and_budget_flags")
+    record("`--ants 0`", "CLI", lambda: cli("tsp", "burma14", "--ants", "0"),
+           test="tests/test_cli_gait.py::test_bad_input_is_a_one_line_error")
+    record("`--max-seconds -1`", "CLI", lambda: cli("tsp", "burma14", "--max-seconds", "-1"),
+           test="none")
     record("`--max-evaluations 2` on tsp", "CLI",
-           lambda: cli("tsp", "burma14", "--max-evaluations", "2"))
+           lambda: cli("tsp", "burma14", "--max-evaluations", "2"),
+           test="tests/test_trust.py::test_budget_below_one_iteration_names_the_charge")
     outfile = TMP / "result.json"
     outfile.write_text("{}")
     record("`--out` pointing at an existing file", "CLI",
-           lambda: cli("tsp", "burma14", "--out", str(outfile)))
+           lambda: cli("tsp", "burma14", "--out", str(outfile)),
+           test="tests/test_interrupt.py::test_out_pointing_at_a_file_is_refused_before_the_run")
     record("`--checkpoint-every 5` without `--checkpoint-dir`", "CLI",
-           lambda: cli("tsp", "burma14", "--checkpoint-every", "5"))
-    record("`eaco --version`", "CLI", lambda: cli("--version"))
-    record("`eaco resume /nonexistent`", "CLI", lambda: cli("resume", "/nonexistent"))
-    record("`minimize(chunk_size=0)`", "API", lambda: ea.minimize(burma, g, chunk_size=0))
-    record("`minimize(iterations=0)`", "API", lambda: ea.minimize(burma, g, iterations=0))
-    record("`minimize(target=nan)`", "API", lambda: ea.minimize(burma, g, target=float("nan")))
-    record("`minimize(precision='half')`", "API", lambda: ea.minimize(burma, g, precision="half"))
+           lambda: cli("tsp", "burma14", "--checkpoint-every", "5"),
+           test="none")
+    record("`eaco --version`", "CLI", lambda: cli("--version"),
+           test="tests/test_trust.py::test_cli_version_info_params_and_budget_flags")
+    record("`eaco resume /nonexistent`", "CLI", lambda: cli("resume", "/nonexistent"),
+           test="tests/test_checkpoint.py::test_eaco_resume_cli_continues_stored_run")
+    record("`minimize(chunk_size=0)`", "API", lambda: ea.minimize(burma, g, chunk_size=0),
+           test="none")
+    record("`minimize(iterations=0)`", "API", lambda: ea.minimize(burma, g, iterations=0),
+           test="none")
+    record("`minimize(target=nan)`", "API", lambda: ea.minimize(burma, g, target=float("nan")),
+           test="none")
+    record("`minimize(precision='half')`", "API", lambda: ea.minimize(burma, g, precision="half"),
+           test="none")
 
     # ------------------------------------------------------------ files
     record("TSPLIB `DIMENSION: 2000000000`", "file", lambda: load_tsplib(write_tsp(
         "huge.tsp", "NAME: huge\nDIMENSION: 2000000000\nEDGE_WEIGHT_TYPE: EUC_2D\n"
-        "NODE_COORD_SECTION\n1 0 0\n2 1 1\n3 2 2\nEOF\n")))
+        "NODE_COORD_SECTION\n1 0 0\n2 1 1\n3 2 2\nEOF\n")),
+           test="tests/test_trust.py::test_huge_dimension_refused_before_allocating")
     record("TSPLIB `DIMENSION: 2e9`", "file", lambda: load_tsplib(write_tsp(
         "huge2.tsp", "NAME: h\nDIMENSION: 2e9\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n"
-        "1 0 0\nEOF\n")))
+        "1 0 0\nEOF\n")),
+           test="tests/test_tsplib.py::test_malformed_files_raise_one_line_errors")
     record("TSPLIB with fewer rows than DIMENSION", "file", lambda: load_tsplib(write_tsp(
         "short.tsp", "NAME: s\nDIMENSION: 5\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n"
-        "1 0 0\n2 1 1\n3 2 2\nEOF\n")))
+        "1 0 0\n2 1 1\n3 2 2\nEOF\n")),
+           test="tests/test_tsplib.py::test_malformed_files_raise_one_line_errors")
     folder = TMP / "folder.tsp"
     folder.mkdir()
-    record("a directory given as a `.tsp` file", "CLI", lambda: cli("tsp", str(folder)))
-    record("a missing `.tsp` file", "CLI", lambda: cli("tsp", str(TMP / "missing.tsp")))
+    record("a directory given as a `.tsp` file", "CLI", lambda: cli("tsp", str(folder)),
+           test="tests/test_trust.py::test_huge_dimension_refused_before_allocating")
+    record("a missing `.tsp` file", "CLI", lambda: cli("tsp", str(TMP / "missing.tsp")),
+           test=("tests/test_cli_tsp.py::test_malformed_and_missing_files_are_one_line_errors",
+                 "tests/test_tsplib.py::test_missing_file"))
     gait_file = TMP / "gait.json"
 
     def bad_gait() -> str:
@@ -297,7 +397,8 @@ def main() -> None:
         params["step_length"] = 50.0
         gait_file.write_text(json.dumps({"robot": "nao", "params": params}))
         return cli("gait-eval", str(gait_file), "--horizon", "0.5", "--quiet")
-    record("gait file with `step_length: 50.0`", "CLI", bad_gait)
+    record("gait file with `step_length: 50.0`", "CLI", bad_gait,
+           test="tests/test_cli_gait.py::test_bad_input_is_a_one_line_error")
 
     # ------------------------------------------------------------ checkpoints
     ck = TMP / "ck"
@@ -307,10 +408,12 @@ def main() -> None:
                            checkpointing=ea.Checkpointing(ck, **kw))
     run_ck(every=5, keep=5)
     record("resume with another `every` (10 instead of 5)", "API",
-           lambda: f"accepted; stop_reason={run_ck(every=10).stop_reason}")
+           lambda: f"accepted; stop_reason={run_ck(every=10).stop_reason}",
+           test="tests/test_checkpoint.py::test_save_frequency_is_not_identity_and_saves_land_on_multiples")
     record("resume with another problem", "API", lambda: ea.minimize(
         load_tsplib("ulysses22"), g, seed=0, iterations=20,
-        checkpointing=ea.Checkpointing(ck, every=5)))
+        checkpointing=ea.Checkpointing(ck, every=5)),
+           test="tests/test_checkpoint.py::test_foreign_checkpoint_refused_and_untouched")
 
     def flip() -> str:
         shutil.rmtree(ck / "20")
@@ -322,7 +425,8 @@ def main() -> None:
         r = run_ck(every=5, keep=5)
         moved = [p.name for p in (ck / "corrupt").iterdir()] if (ck / "corrupt").exists() else []
         return f"iterations={r.iterations}; moved aside: {moved}"
-    record("one flipped byte in the newest checkpoint", "API", flip)
+    record("one flipped byte in the newest checkpoint", "API", flip,
+           test="tests/test_checkpoint.py::test_corrupt_step_moved_aside_and_resume_falls_back")
 
     def flip_history() -> str:
         shutil.rmtree(ck / "20")
@@ -333,7 +437,8 @@ def main() -> None:
         r = run_ck(every=5, keep=5)
         moved = sorted(p.name for p in (ck / "corrupt").iterdir())
         return f"iterations={r.iterations}; moved aside: {moved}"
-    record("one flipped byte in the history log (`history/*.npz`)", "API", flip_history)
+    record("one flipped byte in the history log (`history/*.npz`)", "API", flip_history,
+           test="tests/test_checkpoint.py::test_corrupt_history_segment_moved_aside_with_its_step")
 
     def locked() -> object:
         from eaco_jax.driver.checkpoint import _Lock
@@ -343,17 +448,20 @@ def main() -> None:
             return run_ck(every=5)
         finally:
             lock.release()
-    record("a second run on the same checkpoint folder", "API", locked)
+    record("a second run on the same checkpoint folder", "API", locked,
+           test="tests/test_checkpoint.py::test_second_run_on_one_folder_is_refused")
     afile = TMP / "afile"
     afile.write_text("x")
     record("checkpoint folder that is a file", "API",
-           lambda: ea.minimize(burma, g, checkpointing=ea.Checkpointing(afile)))
+           lambda: ea.minimize(burma, g, checkpointing=ea.Checkpointing(afile)),
+           test="tests/test_checkpoint.py::test_unwritable_checkpoint_folder_is_one_line")
     ro = TMP / "ro"
     ro.mkdir()
     os.chmod(ro, 0o500)
     note = "" if not os.access(ro, os.W_OK) else " (run as root: writable, not tested here)"
     record(f"read-only checkpoint folder{note}", "API",
-           lambda: ea.minimize(burma, g, checkpointing=ea.Checkpointing(ro / "ck")).stop_reason)
+           lambda: ea.minimize(burma, g, checkpointing=ea.Checkpointing(ro / "ck")).stop_reason,
+           test="tests/test_checkpoint.py::test_unwritable_checkpoint_folder_is_one_line")
 
     # ------------------------------------------------------------ sweeps: sizes and types
     def sweep_file(name: str, body: str) -> str:
@@ -363,18 +471,22 @@ def main() -> None:
 
     record("sweep cell `{q0: [0.5, 0.6]}` (a list value)", "sweep", lambda: cli(
         "sweep", sweep_file("list.yaml", "command: tsp\nargs: {instance: burma14}\n"
-                            "cells: [{q0: [0.5, 0.6]}]\n")))
+                            "cells: [{q0: [0.5, 0.6]}]\n")),
+           test="tests/test_sweep.py::test_list_valued_cell_refused_before_anything_is_built")
     record("sweep file of nested YAML aliases (602 bytes, 10**10 leaves)", "sweep", lambda: cli(
         "sweep", sweep_file("bomb.yaml", "command: tsp\n" + "".join(
             f"l{i}: &l{i} [{', '.join([f'*l{i - 1}' if i else '0'] * 10)}]\n"
-            for i in range(10)) + "cells: [{q0: *l9}]\n")))
+            for i in range(10)) + "cells: [{q0: *l9}]\n")),
+           test="tests/test_sweep.py::test_yaml_alias_bomb_refused_fast_in_little_memory")
     record("sweep grid of 9 keys x 10 values (10**9 cells)", "sweep", lambda: cli(
         "sweep", sweep_file("grid.yaml", "command: tsp\nargs: {instance: burma14}\ngrid: {"
                             + ", ".join(f"k{i}: [0, 1, 2, 3, 4, 5, 6, 7, 8, 9]" for i in range(9))
-                            + "}\n")))
+                            + "}\n")),
+           test="tests/test_sweep.py::test_cell_count_is_bounded_before_any_product")
     record("sweep `seeds: 1048576`", "sweep", lambda: cli(
         "sweep", sweep_file("seeds.yaml", "command: tsp\nargs: {instance: burma14}\n"
-                            "seeds: 1048576\n")))
+                            "seeds: 1048576\n")),
+           test="tests/test_sweep.py::test_seeds_at_most_what_runs_and_rows_estimated_before_setup")
 
     # ------------------------------------------------------------ the compiled-program cache
     from eaco_jax.driver import minimize as driver_mod
@@ -415,17 +527,21 @@ def main() -> None:
             program_cache.set_folder(None)
             driver_mod.clear_compiled()
     record("program cache entry replaced by a pickle whose `__reduce__` creates a file", "file",
-           lambda: tampered("pickle"))
-    record("one flipped bit in a program cache entry", "file", lambda: tampered("bit"))
+           lambda: tampered("pickle"),
+           test="tests/test_program_cache.py::test_a_pickled_entry_is_never_unpickled")
+    record("one flipped bit in a program cache entry", "file", lambda: tampered("bit"),
+           test="tests/test_program_cache.py::test_one_flipped_bit_is_caught_by_the_digest")
     record("program cache entries of the initialiser and the chunk swapped by name", "file",
-           lambda: tampered("swap"))
+           lambda: tampered("swap"),
+           test="tests/test_program_cache.py::test_an_entry_of_another_program_under_this_name_is_rebuilt")
     cache_file = TMP / "cache_file"
     cache_file.write_text("x")
 
     def cache_is_file() -> str:
         res = RUNNER.invoke(app, ["tsp", "--help"], env={"EACO_COMPILE_CACHE": str(cache_file)})
         return f"exit {res.exit_code} (the command runs without the cache)"
-    record("`EACO_COMPILE_CACHE` naming a file", "CLI", cache_is_file)
+    record("`EACO_COMPILE_CACHE` naming a file", "CLI", cache_is_file,
+           test="tests/test_program_cache.py::test_a_compile_cache_that_is_a_file_is_said_once")
 
     checkpoint_folder_rows(burma, g)
 
@@ -451,30 +567,18 @@ def main() -> None:
         "Interrupts (Ctrl-C, SIGTERM) and two concurrent command-line runs are exercised in",
         "`tests/test_interrupt.py`; their messages are listed at the end.",
         "",
-        "| tried | via | what it gets now |",
-        "|---|---|---|",
-        *[f"| {w} | {h} | {t} |" for w, h, t in ROWS],
-        "| Ctrl-C while `eaco` still imports (jax, typer: the first second) | CLI | exit 130: "
-        "interrupted |",
-        "| Ctrl-C during compilation (`eaco tsp ... --checkpoint-dir D`) | CLI | exit 130: "
-        "interrupted (SIGINT) after 0 of 3000 iterations; nothing to save yet (start the same "
-        "command again) |",
-        "| Ctrl-C / SIGTERM during a checkpointed run | CLI | exit 130: interrupted (SIGINT) "
-        "after 20 of 3000 iterations; checkpoint saved at step 20 in D; continue with: eaco "
-        "resume D |",
-        "| Ctrl-C without checkpointing | CLI | exit 130: interrupted (SIGINT) after N of M "
-        "iterations; best so far: L (no checkpoint: pass --checkpoint-dir to resume) |",
-        "| the first SIGTERM (or Ctrl-C) during a long chunk | CLI | at once: SIGTERM: stopping "
-        "after the current chunk (iteration X); send again to stop now; at the chunk's end: "
-        "exit 130: interrupted (SIGTERM) after X of M iterations; checkpoint saved ... |",
-        "| a second `eaco tsp --checkpoint-dir D` while the first runs | CLI | exit 2: error: "
-        "checkpoint folder D is in use by another run (pid P since T); wait for it to finish or "
-        "use another --checkpoint-dir |",
+        "The last column names the test(s) in `tests/` that fail if the row's behaviour",
+        "regresses (`none`: no test holds it yet).",
+        "",
+        "| tried | via | what it gets now | held by |",
+        "|---|---|---|---|",
+        *[f"| {w} | {h} | {t} | {b} |" for w, h, t, b in ROWS],
+        *[f"| {w} | CLI | {t} | {held_by(b)} |" for w, t, b in INTERRUPT_ROWS],
         "",
     ]
     out = Path(__file__).resolve().parent.parent / "docs" / "bad_inputs.md"
     out.write_text("\n".join(lines))
-    print(f"{len(ROWS) + 6} rows -> {out}")
+    print(f"{len(ROWS) + len(INTERRUPT_ROWS)} rows -> {out}")
 
 
 
@@ -492,26 +596,35 @@ def scene_rows() -> None:
     walls = [{"polygon": [[8.6, 4.5], [8.8, 4.5], [8.8, 7.5], [8.6, 7.5]], "height": 1},
              {"polygon": [[8.6, 4.5], [10.5, 4.5], [10.5, 4.7], [8.6, 4.7]], "height": 1},
              {"polygon": [[8.6, 7.3], [10.5, 7.3], [10.5, 7.5], [8.6, 7.5]], "height": 1}]
-    record("scene: goal inside an obstacle", "CLI", lambda: scene("goal", goal=[5, 5]))
+    record("scene: goal inside an obstacle", "CLI", lambda: scene("goal", goal=[5, 5]),
+           test="tests/test_scenes.py::test_bad_scenes_get_one_line")
     record("scene: start on an obstacle (within the clearance)", "CLI",
-           lambda: scene("start", start=[3.8, 5]))
-    record("scene: goal walled in (unreachable)", "CLI", lambda: scene("walled", obstacles=walls))
+           lambda: scene("start", start=[3.8, 5]),
+           test="tests/test_scenes.py::test_bad_scenes_get_one_line")
+    record("scene: goal walled in (unreachable)", "CLI", lambda: scene("walled", obstacles=walls),
+           test="tests/test_scenes.py::test_bad_scenes_get_one_line")
     record("scene: obstacle polygon that crosses itself (a bow tie)", "CLI",
            lambda: scene("bowtie", obstacles=[{"polygon": [[0, 0], [2, 2], [2, 0], [0, 2]],
-                                               "height": 1}]))
+                                               "height": 1}]),
+           test="tests/test_scenes.py::test_bad_scenes_get_one_line")
     record("scene: non-convex obstacle", "CLI",
            lambda: scene("concave", obstacles=[{"polygon": [[3, 3], [7, 3], [5, 4], [5, 7]],
-                                                "height": 1}]))
+                                                "height": 1}]),
+           test="tests/test_scenes.py::test_bad_scenes_get_one_line")
     record("scene: ramp steeper than the gait table (12 deg)", "CLI",
            lambda: scene("steep", ramps=[{"polygon": [[1, 7], [3, 7], [3, 9], [1, 9]],
-                                          "slope_deg": 12}]))
-    record("scene: start off the floor", "CLI", lambda: scene("off", start=[11, 5]))
+                                          "slope_deg": 12}]),
+           test="tests/test_scenes.py::test_bad_scenes_get_one_line")
+    record("scene: start off the floor", "CLI", lambda: scene("off", start=[11, 5]),
+           test="tests/test_scenes.py::test_bad_scenes_get_one_line")
     broken = TMP / "scene_broken.json"
     broken.write_text('{"bounds": [0, 0, 10, 10], ')
     record("scene file that is not valid JSON", "CLI",
-           lambda: cli("path", "--scene", str(broken), "--quiet"))
+           lambda: cli("path", "--scene", str(broken), "--quiet"),
+           test="tests/test_scenes.py::test_malformed_and_missing_files")
     record("`eaco path --scene missing.json`", "CLI",
-           lambda: cli("path", "--scene", str(TMP / "missing.json"), "--quiet"))
+           lambda: cli("path", "--scene", str(TMP / "missing.json"), "--quiet"),
+           test="tests/test_scenes.py::test_malformed_and_missing_files")
 
 
 def leg_ik_rows() -> None:
@@ -522,10 +635,13 @@ def leg_ik_rows() -> None:
 
     record("a leg chain whose foot is not below the torso body (ik_generic.extract_chain)",
            "API", lambda: ik_generic.extract_chain(load_model(load_robot("nao")), "l_foot",
-                                                   "r_foot"))
+                                                   "r_foot"),
+           test="tests/test_ik_generic.py::test_bad_leg_chains_are_one_line")
     record("walk engine ik='analytic' for a robot without the NAO's leg geometry (op3)", "API",
            lambda: walk_engine.joint_targets(jnp.zeros(14), jnp.float32(0.0),
-                                             load_robot("op3"), ik="analytic"))
+                                             load_robot("op3"), ik="analytic"),
+           test=("tests/test_ik_generic.py::test_analytic_without_geometry_is_refused",
+                 "tests/test_robot_gaits.py::test_problem_controls_use_its_ik"))
     # Menagerie robots through the walk engines (issue 31): spec feet / arm swing, --ik, penalty
     from eaco_jax.gait.robot import ROBOTS_DIR
 
@@ -540,18 +656,23 @@ def leg_ik_rows() -> None:
                 "--no-video", "--out", str(TMP / "op3_out")]
     record("robot spec whose `feet` names a body the MJCF lacks", "file",
            lambda: cli("gait", "--robot", op3_spec(feet=["l_toe", "r_ank_roll_link"]),
-                       *op3_tiny))
+                       *op3_tiny),
+           test="tests/test_robot_gaits.py::test_bad_feet_and_arm_fields_are_one_line")
     record("robot spec whose `arm_swing_joints` names a joint not in joint_names", "file",
            lambda: cli("gait", "--robot", op3_spec(arm_swing_joints=["l_sho_pitch", "r_arm"]),
-                       *op3_tiny))
+                       *op3_tiny),
+           test="tests/test_robot_gaits.py::test_bad_feet_and_arm_fields_are_one_line")
     record("robot spec whose `arm_swing_joints` turn about the wrong axis (shoulder roll)",
            "file", lambda: cli("gait", "--robot", op3_spec(
-               arm_swing_joints=["l_sho_roll", "r_sho_roll"]), *op3_tiny))
+               arm_swing_joints=["l_sho_roll", "r_sho_roll"]), *op3_tiny),
+           test="tests/test_robot_gaits.py::test_arm_swing_joint_must_turn_sideways")
     record("`eaco gait --robot op3 --ik analytic`", "CLI",
-           lambda: cli("gait", "--robot", "op3", "--ik", "analytic", *op3_tiny))
+           lambda: cli("gait", "--robot", "op3", "--ik", "analytic", *op3_tiny),
+           test="tests/test_robot_gaits.py::test_problem_controls_use_its_ik")
     record("`eaco gait --robot go2 --penalty cot` (no motor datasheet)", "CLI",
            lambda: cli("gait", "--robot", "go2", "--penalty", "cot", "--penalty-weight", "0.1",
-                       *op3_tiny))
+                       *op3_tiny),
+           test="tests/test_robot_gaits.py::test_robust_worlds_and_trials_without_a_motor_datasheet")
 
 
 def limits_rows() -> None:
@@ -564,29 +685,34 @@ def limits_rows() -> None:
     gait = TMP / "zero_gait.json"
     gait.write_text(json.dumps({"robot": "nao", "vector": [0.0] * 14}))
     record("`eaco gait-eval G --horizon 1e9` (5e10 control steps)", "CLI",
-           lambda: cli("gait-eval", str(gait), "--backend", "native", "--horizon", "1e9"))
+           lambda: cli("gait-eval", str(gait), "--backend", "native", "--horizon", "1e9"),
+           test="tests/test_cli_gait.py::test_horizon_past_the_step_clock_is_refused_before_any_simulation")
 
     def tsp_200000() -> None:  # what minimize checks before it compiles anything
         built = run_tsp.build(run_tsp.TspSettings(instance="pr1002", ants=200000))
         check_state_memory(built.strategy, built.problem, 1, built.params)
     record("`eaco tsp pr1002 --ants 200000` (local search on the 25 shortest tours; the check "
-           "minimize runs first)", "API", tsp_200000)
+           "minimize runs first)", "API", tsp_200000,
+           test="none")
     record("`eaco tsp pr1002 --ants 200000 --ls-best-k 200000` (local search on every tour)",
-           "CLI", lambda: cli("tsp", "pr1002", "--ants", "200000", "--ls-best-k", "200000"))
+           "CLI", lambda: cli("tsp", "pr1002", "--ants", "200000", "--ls-best-k", "200000"),
+           test="tests/test_trust.py::test_tsp_colony_whose_iteration_does_not_fit_is_refused_up_front")
     hungry = ConstrainedProblem(
         lambda x: jnp.cumsum(jnp.broadcast_to(x[0], (2**20, 2**19)), axis=0)[-1, 0],
         lower=[0.0, 0.0], upper=[1.0, 1.0], name="hungry")
     record("an objective whose evaluation allocates terabytes (XLA RESOURCE_EXHAUSTED in a chunk)",
            "API",
            lambda: ea.minimize(hungry, ContinuousEACO(num_ants=2, refine_ants=0), seed=0,
-                               iterations=1))
+                               iterations=1),
+           test="tests/test_trust.py::test_out_of_memory_in_a_chunk_is_one_line")
 
     def all_inf() -> str:
         p = ConstrainedProblem(lambda x: jnp.inf * (1.0 + x[0] ** 2), lower=[0.0, 0.0],
                                upper=[1.0, 1.0], name="flat")
         res = ea.minimize(p, seed=0, iterations=4)
         return f"f={res.f} feasible={res.feasible}"
-    record("an objective that is +inf everywhere", "API", all_inf)
+    record("an objective that is +inf everywhere", "API", all_inf,
+           test="tests/test_trust.py::test_infinite_objective_everywhere_is_not_feasible_and_warns")
 
     def wide() -> None:  # what minimize checks before it compiles anything
         p = ConstrainedProblem(lambda x: jnp.sum(x ** 2), lower=[-1.0] * 10000,
@@ -594,7 +720,8 @@ def limits_rows() -> None:
         s = ContinuousEACO()
         check_state_memory(s, p, 1, s.default_params(p))
     record("a 10,000-variable problem with the default ContinuousEACO (the check minimize "
-           "runs first)", "API", wide)
+           "runs first)", "API", wide,
+           test="tests/test_trust.py::test_large_continuous_problem_warns_and_refuses_by_its_hessians")
 
 
 def first_hour_rows() -> None:
@@ -607,16 +734,22 @@ def first_hour_rows() -> None:
 
     record("`eaco gait --params q0=0.5` (4 ants, 1 iteration, 0.5 s)", "CLI", lambda: cli(
         "gait", "--backend", "native", "--ants", "4", "--iterations", "1", "--horizon", "0.5",
-        "--no-video", "--params", "q0=0.5", "--out", str(TMP / "gait_q0")))
+        "--no-video", "--params", "q0=0.5", "--out", str(TMP / "gait_q0")),
+           test="tests/test_cli_first_hour.py::test_gait_params_reach_the_colony")
     record("`eaco gait --params p_repair=0.5` (gait has no gradient repair)", "CLI",
-           lambda: cli("gait", "--params", "p_repair=0.5"))
+           lambda: cli("gait", "--params", "p_repair=0.5"),
+           test="tests/test_cli_first_hour.py::test_gait_params_without_effect_name_nothing_gait_cannot_set")
     record("`eaco constrained g06 --repair-steps 0 --params p_repair=0.3`", "CLI",
-           lambda: cli("constrained", "g06", "--repair-steps", "0", "--params", "p_repair=0.3"))
+           lambda: cli("constrained", "g06", "--repair-steps", "0", "--params", "p_repair=0.3"),
+           test="tests/test_cli_first_hour.py::test_params_without_effect_are_refused_by_single_runs")
     record("`eaco tsp burma14 --bogus 1` (an option no command has)", "CLI",
-           lambda: cli("tsp", "burma14", "--bogus", "1"))
-    record("`eaco resume` (no folder)", "CLI", lambda: cli("resume"))
+           lambda: cli("tsp", "burma14", "--bogus", "1"),
+           test="tests/test_cli_first_hour.py::test_usage_errors_are_one_line_naming_the_help")
+    record("`eaco resume` (no folder)", "CLI", lambda: cli("resume"),
+           test="tests/test_cli_first_hour.py::test_usage_errors_are_one_line_naming_the_help")
     record("`eaco tsp burma14 --ants many`", "CLI", lambda: cli("tsp", "burma14", "--ants",
-                                                                 "many"))
+                                                                 "many"),
+           test="tests/test_cli_first_hour.py::test_usage_errors_are_one_line_naming_the_help")
 
     def tell_plain_costs() -> object:
         problem = functions.sphere()
@@ -625,7 +758,8 @@ def first_hour_rows() -> None:
         x, state = strategy.ask(jax.random.key(1), state, problem)
         return strategy.tell(state, x, np.sum(np.asarray(x) ** 2, axis=1), problem)
     record("`ContinuousEACO.tell(state, x, numpy_costs, problem)` (no ea.Evaluation)", "API",
-           tell_plain_costs)
+           tell_plain_costs,
+           test="tests/test_cli_first_hour.py::test_continuous_tell_with_plain_costs_names_evaluation")
 
 
 def checkpoint_folder_rows(burma: object, g: object) -> None:
@@ -644,7 +778,8 @@ def checkpoint_folder_rows(burma: object, g: object) -> None:
             shutil.rmtree(older / step)
         return f"iterations={run_in(older, 25, 5).iterations}"
     record("fresh run (every 5, 25 its) in a folder holding an older run's history segments "
-           "(every 10, 30 its; its steps gone)", "API", fresh_over_older)
+           "(every 10, 30 its; its steps gone)", "API", fresh_over_older,
+           test="tests/test_checkpoint.py::test_fresh_run_sets_an_earlier_runs_history_aside")
 
     corrupt = TMP / "allcorrupt"
 
@@ -661,7 +796,8 @@ def checkpoint_folder_rows(burma: object, g: object) -> None:
             cli("resume", str(corrupt))  # moves every step into corrupt/
         return cli("resume", str(corrupt))
     record("`eaco resume D` again after every checkpoint in D was corrupt", "CLI",
-           resume_all_corrupt)
+           resume_all_corrupt,
+           test="tests/test_checkpoint.py::test_resume_after_every_checkpoint_was_corrupt_names_the_command")
 
     full = TMP / "full"
 
@@ -679,7 +815,9 @@ def checkpoint_folder_rows(burma: object, g: object) -> None:
         finally:
             os.fsync = real
     record("disk full during a save (ENOSPC injected at the history segment's fsync; a real "
-           "full tmpfs in tests/test_checkpoint.py)", "API", disk_full)
+           "full tmpfs in tests/test_checkpoint.py)", "API", disk_full,
+           test=("tests/test_checkpoint.py::test_disk_full_during_a_save_is_one_line_and_resumes_bit_identically",
+                 "tests/test_checkpoint.py::test_a_real_full_disk_during_a_save_is_one_line"))
 
 
 if __name__ == "__main__":

@@ -143,6 +143,8 @@ def test_bad_input_is_a_one_line_error(tmp_path):
     assert "missing" in one_line_error(["gait-eval", str(bad)])
     bad.write_text(json.dumps({"robot": "nao", "vector": [float("nan")] * 14}))
     assert "finite" in one_line_error(["gait-eval", str(bad)])
+    bad.write_text(json.dumps({"robot": "nao", "vector": [50.0] * 14}))
+    assert "is outside the walk engine's range" in one_line_error(["gait-eval", str(bad)])
     bad.write_text(json.dumps({"robot": "nao", "vector": [0.0] * 14}))
     assert "backend='cuda' is not one of" in one_line_error(
         ["gait-eval", str(bad), "--backend", "cuda"])
