@@ -180,3 +180,36 @@ def test_checkpoint_stores_the_resolved_colony(tmp_path):
     assert again.exit_code == 0, again.output
     assert (json.loads(again.stdout.strip().splitlines()[-1])["best_length"]
             == json.loads(res.stdout.strip().splitlines()[-1])["best_length"])
+
+
+def test_max_seconds_alone_governs_the_run(tmp_path):
+    """Issue 33: with --max-seconds and no --iterations, time ends the run (not the default
+    300 iterations), the record and the summary line say so, and the checkpoint resumes."""
+    out, ck = tmp_path / "run", tmp_path / "ck"
+    res = CliRunner().invoke(app, ["tsp", "eil51", "--max-seconds", "2", "--local-search",
+                                   "none", "--ants", "8", "--out", str(out),
+                                   "--checkpoint-dir", str(ck), "--checkpoint-every", "100"])
+    assert res.exit_code == 0, res.output
+    record = json.loads((out / "result.json").read_text())
+    assert record["stop_reason"] == "max_seconds", record["stop_reason"]
+    assert record["iterations"] > 300 and record["seconds"] >= 2.0
+    assert "stopped by max_seconds" in res.stdout.strip().splitlines()[-1]
+    assert read_settings(ck)["iterations"] is None
+    again = CliRunner().invoke(app, ["resume", str(ck), "--json"])
+    assert again.exit_code == 0, again.output
+    assert json.loads(again.stdout.strip().splitlines()[-1])["best_length"] == \
+        record["best_length"]
+
+
+def test_no_budget_stops_at_the_default_iterations():
+    res = CliRunner().invoke(app, ["tsp", "burma14", "--local-search", "none", "--ants", "8",
+                                   "--json"])
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.stdout.strip().splitlines()[-1])
+    assert (record["iterations"], record["stop_reason"]) == (300, "iterations")
+
+
+def read_settings(ck):
+    from eaco_jax.driver.checkpoint import read_meta
+
+    return read_meta(ck)["run_info"]["settings"]

@@ -95,7 +95,8 @@ def interrupt_message(name: str, result: Any, done: int, total: int,
                       checkpointing: Any | None) -> str:
     """The line an interrupted run ends with: where its checkpoint is and how to continue, or
     (without checkpointing) the best so far of ``result``."""
-    head = f"interrupted ({name}) after {done} of {total} iterations"
+    of = "" if total >= 2**31 - 1 else f" of {total}"  # 2**31 - 1: no cap (rows.UNCAPPED)
+    head = f"interrupted ({name}) after {done}{of} iterations"
     if checkpointing is not None and done == 0:
         return f"{head}; nothing to save yet (start the same command again)"
     if checkpointing is not None:

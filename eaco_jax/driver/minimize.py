@@ -49,6 +49,7 @@ from eaco_jax.driver.programs import (  # noqa: F401  (re-exported)
 from eaco_jax.driver.result import Result, host_checks, make_result, shown_best  # noqa: F401
 from eaco_jax.driver.rows import (  # noqa: F401  (re-exported)
     MAX_EVALUATIONS,
+    UNCAPPED,
     checked_seeds,
     default_chunk,
     initial_state,
@@ -282,7 +283,8 @@ def run(
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=total, initial=done, desc=getattr(problem, "name", "eaco"), unit="it")
+        bar = tqdm(total=None if total >= UNCAPPED else total, initial=done,
+                   desc=getattr(problem, "name", "eaco"), unit="it")
     signals = Signals(newline=bar is not None)
     stopping = StopReason(rules or [], total, interrupted=signals,
                           exhausted=lambda s: exhausted(strategy, problem, s, max_evaluations))

@@ -59,6 +59,10 @@ def stack_params(params: Sequence[Any]) -> Any:
     return jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *params)
 
 
+#: an iteration budget this large is no cap: the run of ``--max-seconds`` alone, which time
+#: (or another stop rule) ends
+UNCAPPED = 2**31 - 1
+
 #: evaluation counters are int32
 MAX_EVALUATIONS = 2**31 - 1 - 2**24
 

@@ -318,17 +318,33 @@ def check_out(out: str | None, files: tuple[str, ...] = ()) -> None:
                           "folder") from None
 
 
-def budget_of(s: Any, iterations: int | None) -> dict[str, Any]:
+def budget_of(s: Any, iterations: int | None, default: dict[str, int] | None = None,
+              chunk: int | None = None) -> dict[str, Any]:
     """The budget keywords of ``minimize`` from a Settings with ``max_evaluations`` /
-    ``max_seconds`` fields: ``max_evaluations`` (if set) replaces ``iterations``."""
+    ``max_seconds`` fields: ``max_evaluations`` (if set) replaces ``iterations``.
+
+    Neither given: with ``max_seconds``, no iteration cap (time ends the run, checked every
+    ``chunk`` iterations: default a twentieth of ``default``'s iterations, as a run of the
+    default budget is chunked); without it, ``default`` (the kind's default budget, e.g.
+    ``{"iterations": 300}``).
+    """
+    from eaco_jax.driver.rows import UNCAPPED, default_chunk
+
     budget: dict[str, Any] = {}
     max_evals = getattr(s, "max_evaluations", None)
+    max_seconds = getattr(s, "max_seconds", None)
     if max_evals is not None:
         budget["max_evaluations"] = int(max_evals)
     elif iterations is not None:
         budget["iterations"] = int(iterations)
-    if getattr(s, "max_seconds", None) is not None:
-        budget["max_seconds"] = float(s.max_seconds)
+    elif max_seconds is not None:
+        budget["iterations"] = UNCAPPED
+        per = (default or {}).get("iterations", 100)
+        budget["chunk_size"] = chunk if chunk is not None else default_chunk(per, None)
+    elif default:
+        budget.update(default)
+    if max_seconds is not None:
+        budget["max_seconds"] = float(max_seconds)
     return budget
 
 

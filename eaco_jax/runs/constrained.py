@@ -31,6 +31,11 @@ FUNCTIONS = ("sphere", "rosenbrock", "rastrigin", "ackley")
 METHODS = ("epsilon", "deb", "penalty")
 
 
+#: the evaluation budget of a run given neither --iterations, --max-evaluations nor
+#: --max-seconds
+EVALUATIONS = 500_000
+
+
 @dataclasses.dataclass(frozen=True)
 class ConstrainedSettings:
     problem: str = setting("g01", "g01..g13, G1..G4, or sphere/rosenbrock/rastrigin/ackley",
@@ -39,7 +44,9 @@ class ConstrainedSettings:
     seed: int = setting(0, "random seed")
     ants: int = setting(20, "colony size")
     archive_size: int = setting(30, "solutions kept in the ranked archive (the pheromone)")
-    max_evaluations: int | None = setting(500_000, "evaluation budget (or give --iterations)")
+    max_evaluations: int | None = setting(None, f"evaluation budget (default {EVALUATIONS:,}; "
+                                          "with --max-seconds alone, no cap: time ends the "
+                                          "run; or give --iterations)")
     iterations: int | None = setting(None, "iteration budget instead of --max-evaluations")
     repair_steps: int = setting(3, "gradient-repair steps per infeasible ant (0: none)")
     refine_ants: int = setting(4, "SQP refinement ants per iteration (0: derivative-free)")
@@ -84,7 +91,8 @@ def build(s: ConstrainedSettings) -> Built:
                                   constraint_method=s.method, repair_steps=int(s.repair_steps),
                                   refine_ants=int(s.refine_ants))
         params = params_from(strategy, problem, s.params)
-    budget: dict[str, Any] = {"chunk_size": 50, **budget_of(s, s.iterations)}
+    budget: dict[str, Any] = {
+        **budget_of(s, s.iterations, {"max_evaluations": EVALUATIONS}), "chunk_size": 50}
     if problem.f_star is not None:
         budget["target"] = problem.f_star + TARGET_TOLERANCE
     return Built(problem, strategy, params, budget, context=float64)

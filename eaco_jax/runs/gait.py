@@ -116,13 +116,18 @@ def pin_robot(checkpointing: Any, spec: Any) -> None:
             "restore that spec, or start a new run without --checkpoint-dir")
 
 
+#: the iteration budget of a run given neither --iterations, --max-evaluations nor --max-seconds
+ITERATIONS = 25
+
+
 @dataclasses.dataclass(frozen=True)
 class GaitSettings:
     robot: str = setting("nao", ROBOT_HELP)
     backend: str = setting("auto", "physics: native (MuJoCo C, CPU default), mjx (GPU default) "
                            "or auto", choices=BACKENDS)
     ants: int = setting(16, "colony size (gaits simulated per iteration)")
-    iterations: int = setting(25, "colony iterations")
+    iterations: int | None = setting(None, f"colony iterations (default {ITERATIONS}; with "
+                                     "--max-seconds alone, no cap: time ends the run)")
     horizon: float = setting(4.0, "seconds simulated per gait (the paper uses 20)")
     direction: float = setting(0.0, "desired walking direction in degrees, 0 = forward (+x)")
     slope: float = setting(0.0, "floor slope in degrees, uphill along +x")
@@ -417,7 +422,8 @@ def build(s: GaitSettings) -> Built:
                               refine_ants=0, repair_steps=0,
                               constraint_method=s.constraint_method)
     params = params_from(strategy, search, s.params, fixed=FIXED_SWITCHES, command="eaco gait")
-    return Built(search, strategy, params, budget_of(s, s.iterations), extra=extra)
+    return Built(search, strategy, params, budget_of(s, s.iterations, {"iterations": ITERATIONS}),
+                 extra=extra)
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:

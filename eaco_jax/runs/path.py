@@ -27,6 +27,9 @@ from eaco_jax.runs.base import (
 )
 from eaco_jax.runs.tsp import PARAMS_HELP
 
+#: the iteration budget of a run given neither --iterations, --max-evaluations nor --max-seconds
+ITERATIONS = 150
+
 
 @dataclasses.dataclass(frozen=True)
 class PathSettings:
@@ -37,7 +40,8 @@ class PathSettings:
     obstacles: int = setting(10, "number of convex obstacles")
     world_seed: int = setting(1, "seed of the random obstacle world")
     ants: int = setting(32, "ants per iteration")
-    iterations: int = setting(150, "colony iterations")
+    iterations: int | None = setting(None, f"colony iterations (default {ITERATIONS}; with "
+                                     "--max-seconds alone, no cap: time ends the run)")
     seed: int = setting(0, "seed of the colony")
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
@@ -63,7 +67,8 @@ def build(s: PathSettings) -> Built:
         problem = random_environment(int(s.obstacles), seed=int(s.world_seed), radius=radius)
     strategy = get(s.strategy, num_ants=int(s.ants))
     params = params_from(strategy, problem, s.params)
-    return Built(problem, strategy, params, budget_of(s, s.iterations))
+    return Built(problem, strategy, params,
+                 budget_of(s, s.iterations, {"iterations": ITERATIONS}))
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:

@@ -121,13 +121,18 @@ def auto_help(attr: str, show: Callable[[Any], str] = str,
     return "; ".join(parts)
 
 
+#: the iteration budget of a run given neither --iterations, --max-evaluations nor --max-seconds
+ITERATIONS = 300
+
+
 @dataclasses.dataclass(frozen=True)
 class TspSettings:
     instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
                             positional=True, metavar="FILE_OR_NAME")
     ants: int | None = setting(None, f"colony size (auto: {auto_help('ants')}; chosen for "
                                "the shortest tour within a time budget, docs/results.md)")
-    iterations: int = setting(300, "iterations")
+    iterations: int | None = setting(None, f"iterations (default {ITERATIONS}; with "
+                                     "--max-seconds alone, no cap: time ends the run)")
     seed: int = setting(0, "random seed")
     local_search: str = setting("auto", "local search (2opt: best-improvement batches on the "
                                 "candidate lists; or-2opt: the same + Or-opt; 2opt-dlb, "
@@ -196,7 +201,8 @@ def build(s: TspSettings) -> Built:
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset)
     params = params_from(strategy, problem, s.params)
-    return Built(problem, strategy, params, budget_of(s, s.iterations))
+    budget = budget_of(s, s.iterations, {"iterations": ITERATIONS})
+    return Built(problem, strategy, params, budget)
 
 
 def with_resolved_settings(checkpointing: Any, built: Built) -> Any:
@@ -295,7 +301,8 @@ def summary(record: dict[str, Any]) -> str:
     gap = record.get("gap_percent")
     return (f"{record['instance']}: best length {record['best_length']}"
             + (f" (optimum {record['optimum']:g}, gap {gap:.2f}%)" if gap is not None else "")
-            + f" in {record['iterations']} iterations, {record['seconds']:.1f} s")
+            + f" in {record['iterations']} iterations, {record['seconds']:.1f} s"
+            + (f", stopped by {record['stop_reason']}" if record.get("stop_reason") else ""))
 
 
 KIND = RunKind("tsp", TspSettings, build, run, row_metrics, summary)
