@@ -176,11 +176,11 @@ def constrained_gait_rows() -> None:
            test="tests/test_gait_constraints.py::test_constrained_settings_errors")
     record("`make_gait_problem(constrained='yes')`", "API",
            lambda: make_gait_problem("nao", backend="native", constrained="yes"),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_constrained_must_be_a_boolean")
     record("`eaco gait-eval G --stream validation`", "CLI",
            lambda: cli("gait-eval", "experiments/results/nao_best_gait.json", "--stream",
                        "validation"),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_command_line_refusals_are_one_line")
 
 
 #: Interrupts and concurrent command-line runs (exercised in tests/test_interrupt.py, not
@@ -190,14 +190,15 @@ INTERRUPT_ROWS: list[tuple[str, str, str | tuple[str, ...]]] = [
      "tests/test_interrupt.py::test_ctrl_c_while_the_command_imports_is_one_line"),
     ("Ctrl-C during compilation (`eaco tsp ... --checkpoint-dir D`)",
      "exit 130: interrupted (SIGINT) after 0 of 3000 iterations; nothing to save yet (start the "
-     "same command again)", "none"),
+     "same command again)", "tests/test_bad_input_rows.py::test_interrupt_lines_say_what_was_kept"),
     ("Ctrl-C / SIGTERM during a checkpointed run",
      "exit 130: interrupted (SIGINT) after 20 of 3000 iterations; checkpoint saved at step 20 in "
      "D; continue with: eaco resume D",
      "tests/test_interrupt.py::test_checkpointed_run_saves_and_says_how_to_resume"),
     ("Ctrl-C without checkpointing",
      "exit 130: interrupted (SIGINT) after N of M iterations; best so far: L (no checkpoint: "
-     "pass --checkpoint-dir to resume)", "none"),
+     "pass --checkpoint-dir to resume)",
+     "tests/test_bad_input_rows.py::test_interrupt_lines_say_what_was_kept"),
     ("the first SIGTERM (or Ctrl-C) during a long chunk",
      "at once: SIGTERM: stopping after the current chunk (iteration X); send again to stop now; "
      "at the chunk's end: exit 130: interrupted (SIGTERM) after X of M iterations; checkpoint "
@@ -309,7 +310,7 @@ def main() -> None:
     record("`--params bogus=1`", "CLI", lambda: cli("tsp", "burma14", "--params", "bogus=1"),
            test="tests/test_cli_first_hour.py::test_gait_params_are_checked")
     record("`--params q0=abc`", "CLI", lambda: cli("tsp", "burma14", "--params", "q0=abc"),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_command_line_refusals_are_one_line")
     record("`--params rho=0.1` (no LS defaults: rho unused)", "CLI",
            lambda: cli("tsp", "burma14", "--local-search", "none", "--iterations", "3",
                        "--quiet", "--params", "rho=0.1"),
@@ -331,7 +332,7 @@ def main() -> None:
            lambda: plan({**base, "grid": {"rho": [0.05, 0.2, 0.5]}}),
            test="tests/test_trust.py::test_sweeping_an_unused_param_is_refused_naming_the_switch")
     record("sweep seeds `[-1]`", "sweep", lambda: plan({**base, "seeds": [-1]}),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_sweep_seed_outside_the_key_range_is_refused")
 
     # ------------------------------------------------------------ command line values
     record("`--seed 99999999999999999999`", "CLI",
@@ -342,7 +343,7 @@ def main() -> None:
     record("`--ants 0`", "CLI", lambda: cli("tsp", "burma14", "--ants", "0"),
            test="tests/test_cli_gait.py::test_bad_input_is_a_one_line_error")
     record("`--max-seconds -1`", "CLI", lambda: cli("tsp", "burma14", "--max-seconds", "-1"),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_command_line_refusals_are_one_line")
     record("`--max-evaluations 2` on tsp", "CLI",
            lambda: cli("tsp", "burma14", "--max-evaluations", "2"),
            test="tests/test_trust.py::test_budget_below_one_iteration_names_the_charge")
@@ -353,19 +354,19 @@ def main() -> None:
            test="tests/test_interrupt.py::test_out_pointing_at_a_file_is_refused_before_the_run")
     record("`--checkpoint-every 5` without `--checkpoint-dir`", "CLI",
            lambda: cli("tsp", "burma14", "--checkpoint-every", "5"),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_command_line_refusals_are_one_line")
     record("`eaco --version`", "CLI", lambda: cli("--version"),
            test="tests/test_trust.py::test_cli_version_info_params_and_budget_flags")
     record("`eaco resume /nonexistent`", "CLI", lambda: cli("resume", "/nonexistent"),
            test="tests/test_checkpoint.py::test_eaco_resume_cli_continues_stored_run")
     record("`minimize(chunk_size=0)`", "API", lambda: ea.minimize(burma, g, chunk_size=0),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_minimize_arguments_are_checked_before_a_run")
     record("`minimize(iterations=0)`", "API", lambda: ea.minimize(burma, g, iterations=0),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_minimize_arguments_are_checked_before_a_run")
     record("`minimize(target=nan)`", "API", lambda: ea.minimize(burma, g, target=float("nan")),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_minimize_arguments_are_checked_before_a_run")
     record("`minimize(precision='half')`", "API", lambda: ea.minimize(burma, g, precision="half"),
-           test="none")
+           test="tests/test_bad_input_rows.py::test_minimize_arguments_are_checked_before_a_run")
 
     # ------------------------------------------------------------ files
     record("TSPLIB `DIMENSION: 2000000000`", "file", lambda: load_tsplib(write_tsp(
@@ -693,7 +694,7 @@ def limits_rows() -> None:
         check_state_memory(built.strategy, built.problem, 1, built.params)
     record("`eaco tsp pr1002 --ants 200000` (local search on the 25 shortest tours; the check "
            "minimize runs first)", "API", tsp_200000,
-           test="none")
+           test="tests/test_bad_input_rows.py::test_a_colony_whose_iteration_is_large_warns_before_it_runs")
     record("`eaco tsp pr1002 --ants 200000 --ls-best-k 200000` (local search on every tour)",
            "CLI", lambda: cli("tsp", "pr1002", "--ants", "200000", "--ls-best-k", "200000"),
            test="tests/test_trust.py::test_tsp_colony_whose_iteration_does_not_fit_is_refused_up_front")
