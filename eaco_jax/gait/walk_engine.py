@@ -141,7 +141,7 @@ def _trots(spec) -> bool:
 
 def stand_hip_height(spec) -> float:
     """Hip height over the foot points when standing [m]: the spec's ``stand_hip_height``
-    geometry where given, else measured on the standing pose through the leg chains."""
+    geometry where given, else computed from the standing pose through the leg chains."""
     geo = dict(spec.geometry)
     return float(geo["stand_hip_height"]) if "stand_hip_height" in geo else (
         leg_set(spec).stand_height)
