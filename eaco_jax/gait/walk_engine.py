@@ -188,23 +188,45 @@ def _foot(phase: jnp.ndarray, d: jnp.ndarray):
     return xi, lift, bump
 
 
+class _BipedProfile(NamedTuple):
+    """The biped walk's timing at one instant, shared by the analytic and the generic engine."""
+
+    ramp: jnp.ndarray  # 0 -> 1 over RAMP_TIME: the walk fades in from the standing pose
+    slope: float  # ground slope [rad]
+    tan_slope: float
+    s: jnp.ndarray  # step length so far [m]
+    h: jnp.ndarray  # hip height so far [m]
+    sway: jnp.ndarray  # lateral sway of the feet [m]
+    cdir: jnp.ndarray  # cos / sin of the stepping direction (heading + offset)
+    sdir: jnp.ndarray
+    psi: jnp.ndarray  # foot yaw of the left foot relative to the torso (right: -psi) [rad]
+    feet: tuple  # (xi, lift, bump) of the left, then the right foot (see _foot)
+
+
+def _biped_profile(p: GaitParams, t: jnp.ndarray, h0: float, heading: float,
+                   slope_deg: float) -> _BipedProfile:
+    ramp = jnp.clip(t / RAMP_TIME, 0.0, 1.0)
+    slope = math.radians(slope_deg)
+    phase_l = jnp.mod(t / p.period, 1.0)
+    phase_r = jnp.mod(phase_l + 0.5, 1.0)
+    sway = p.lateral_sway * ramp * jnp.cos(2 * jnp.pi * (phase_l - p.duty_ratio / 2))
+    # the torso starts facing +x; the feet step along the desired heading plus the offset
+    cdir, sdir = jnp.cos(heading + p.direction), jnp.sin(heading + p.direction)
+    feet = (_foot(phase_l, p.duty_ratio), _foot(phase_r, p.duty_ratio))
+    psi = p.turn_rate * p.duty_ratio * p.period * ramp * (feet[0][0] - feet[1][0]) / 2.0
+    return _BipedProfile(ramp, slope, math.tan(slope), p.step_length * ramp,
+                         h0 + (p.hip_height - h0) * ramp, sway, cdir, sdir, psi, feet)
+
+
 def _biped_targets(
     params: jnp.ndarray, t: jnp.ndarray, spec, heading: float, slope_deg: float
 ) -> jnp.ndarray:
     p = GaitParams(*[params[i] for i in range(len(PARAM_NAMES))])
     thigh, tibia = spec.geom("thigh"), spec.geom("tibia")
     foot_h = spec.geom("foot_height")
-    h0 = spec.geom("stand_hip_height")
-    ramp = jnp.clip(t / RAMP_TIME, 0.0, 1.0)
-    slope = math.radians(slope_deg)
-    tan_slope = math.tan(slope)
-    s = p.step_length * ramp
-    h = h0 + (p.hip_height - h0) * ramp
-    phase_l = jnp.mod(t / p.period, 1.0)
-    phase_r = jnp.mod(phase_l + 0.5, 1.0)
-    sway = p.lateral_sway * ramp * jnp.cos(2 * jnp.pi * (phase_l - p.duty_ratio / 2))
-    # the torso starts facing +x; the feet step along the desired heading plus the offset
-    cdir, sdir = jnp.cos(heading + p.direction), jnp.sin(heading + p.direction)
+    pr = _biped_profile(p, t, spec.geom("stand_hip_height"), heading, slope_deg)
+    ramp, slope, tan_slope, h, sway = pr.ramp, pr.slope, pr.tan_slope, pr.h, pr.sway
+    cdir, sdir, psi = pr.cdir, pr.sdir, pr.psi
     out = jnp.asarray(spec.stand_ctrl, jnp.float32)
     legs = _biped_legs(spec)
     if legs.joint_index.shape[1] != 6:
@@ -214,11 +236,8 @@ def _biped_targets(
     arms = arm_swing(spec)
     # One motor drives both HipYawPitch joints (robots/nao.xml): the feet yaw by +psi (left) and
     # -psi (right) relative to the torso, which turns the body by the stance foot's yaw change.
-    xi_l, xi_r = _foot(phase_l, p.duty_ratio)[0], _foot(phase_r, p.duty_ratio)[0]
-    psi = p.turn_rate * p.duty_ratio * p.period * ramp * (xi_l - xi_r) / 2.0
-    for i, (phase, sign) in enumerate(((phase_l, 1.0), (phase_r, -1.0))):
-        xi, lift, bump = _foot(phase, p.duty_ratio)
-        along = s * xi
+    for i, ((xi, lift, bump), sign) in enumerate(zip(pr.feet, (1.0, -1.0), strict=True)):
+        along = pr.s * xi
         ankle_x = along * cdir
         ankle = jnp.stack([
             ankle_x,
@@ -273,21 +292,12 @@ def biped_feet(
     the analytic engine's ankle targets, relative to the standing pose)."""
     p = GaitParams(*[params[i] for i in range(len(PARAM_NAMES))])
     h0 = stand_hip_height(spec)
-    ramp = jnp.clip(t / RAMP_TIME, 0.0, 1.0)
-    slope = math.radians(slope_deg)
-    tan_slope = math.tan(slope)
-    s = p.step_length * ramp
-    h = h0 + (p.hip_height - h0) * ramp
-    phase_l = jnp.mod(t / p.period, 1.0)
-    phase_r = jnp.mod(phase_l + 0.5, 1.0)
-    sway = p.lateral_sway * ramp * jnp.cos(2 * jnp.pi * (phase_l - p.duty_ratio / 2))
-    cdir, sdir = jnp.cos(heading + p.direction), jnp.sin(heading + p.direction)
-    xi_l, xi_r = _foot(phase_l, p.duty_ratio)[0], _foot(phase_r, p.duty_ratio)[0]
-    psi = p.turn_rate * p.duty_ratio * p.period * ramp * (xi_l - xi_r) / 2.0
+    pr = _biped_profile(p, t, h0, heading, slope_deg)
+    ramp, slope, tan_slope, h, sway = pr.ramp, pr.slope, pr.tan_slope, pr.h, pr.sway
+    cdir, sdir, psi = pr.cdir, pr.sdir, pr.psi
     delta, yaw, offsets, arm = [], [], [], []
-    for phase, sign in ((phase_l, 1.0), (phase_r, -1.0)):
-        xi, lift, bump = _foot(phase, p.duty_ratio)
-        along = s * xi
+    for (xi, lift, bump), sign in zip(pr.feet, (1.0, -1.0), strict=True):
+        along = pr.s * xi
         dx = along * cdir
         delta.append(jnp.stack([
             dx,
