@@ -5,8 +5,11 @@ A :class:`TSP` holds the distance matrix in float32 and each city's ``k`` neares
 ``0..n-1``; a tour is closed (the last city returns to the first).
 
 Exactness: TSPLIB files (and integer matrices) give integer distances (each below 2**24, so
-exact in float32); inside a compiled run a tour's length is summed in int32 (exact to 2**31),
-and the lengths :func:`~eaco_jax.minimize` reports are summed again on the host in int64.
+exact in float32). Inside a compiled run a tour's length is an exact integer sum rounded once to
+float32 (the colony's fitness dtype): one int32 sum when no tour can reach 2**31, else
+:func:`exact_int_sum`, two int32 words (each edge split at bit 12), so no tour length overflows
+below 2**19 cities; the rounding is monotone, so a shorter tour never compares longer. The
+lengths :func:`~eaco_jax.minimize` reports are summed again on the host in int64.
 Coordinates give real (unrounded) Euclidean distances unless a TSPLIB ``metric`` is named;
 their reported lengths are float64 sums of the float32 edges. Called from the host (not
 under ``jit``/``vmap``), :meth:`TSP.evaluate` checks its tours and returns float64 lengths.
@@ -56,12 +59,45 @@ def nearest_neighbors(dist: np.ndarray, k: int) -> np.ndarray:
     return np.argsort(d, axis=1, kind="stable")[:, :k].astype(np.int32)
 
 
-#: integer tour lengths are summed in int32 inside a run: every tour must stay below this
+#: integer tour lengths below this are summed in one int32 word inside a run; a matrix whose
+#: tours can reach it is summed in two (:func:`exact_int_sum`)
 INT32_SUM_LIMIT = 2**31 - 1
+#: :func:`exact_int_sum` holds the sums of n 12-bit halves in int32: at most this many cities
+WIDE_SUM_MAX_CITIES = (2**31 - 1) // 4095
 
 
-def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool]:
-    """The checked float64 matrix and whether every entry is an integer."""
+def exact_int_sum(edges: jax.Array) -> jax.Array:
+    """float32 of the exact sum over the last axis of int32 ``edges`` (each in [0, 2**24)).
+
+    Each edge splits at bit 12 into a high and a low half; both halves sum exactly in int32
+    (fewer than :data:`WIDE_SUM_MAX_CITIES` terms), the low sum's carry moves to the high sum,
+    and ``high * 4096 + low`` rounds once to float32. Exact to 2**36 before that rounding, and
+    monotone beyond (the low part is then below half a float32 step), so two tours never
+    compare in the wrong order; two int32 sums instead of one, with no 64-bit integers (JAX
+    runs without x64 here).
+    """
+    hi = jnp.sum(edges >> 12, axis=-1, dtype=jnp.int32)
+    lo = jnp.sum(edges & 4095, axis=-1, dtype=jnp.int32)
+    hi = hi + (lo >> 12)
+    return hi.astype(jnp.float32) * 4096.0 + (lo & 4095).astype(jnp.float32)
+
+
+def words_needed(longest: float, n: int) -> int:
+    """int32 words an integer tour length needs inside a run: 1 while no tour can reach
+    2**31 (``longest`` bounds every tour), else 2; refuses more cities than 2 words hold."""
+    if longest <= INT32_SUM_LIMIT:
+        return 1
+    if n > WIDE_SUM_MAX_CITIES:
+        raise ProblemError(
+            f"{n} cities of integer distances: tour lengths up to {longest:.0f} need more "
+            f"than the {WIDE_SUM_MAX_CITIES:,} cities that two int32 words sum exactly; "
+            "use at most that many cities")
+    return 2
+
+
+def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool, int]:
+    """The checked float64 matrix, whether every entry is an integer and the int32 words of
+    its in-run tour sums (:func:`words_needed`)."""
     d = np.asarray(d)
     if d.ndim != 2 or d.shape[0] != d.shape[1]:
         raise ProblemError(f"distance matrix must be square (n, n), got shape {d.shape}")
@@ -84,21 +120,26 @@ def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool]:
             "integer distances >= 2**24 cannot be held exactly in float32; rescale the matrix"
         )
     longest = float(d.max(axis=1).sum())  # no tour is longer than the sum of row maxima
-    if integer and longest > INT32_SUM_LIMIT:
-        raise ProblemError(
-            f"tours of this matrix can reach {longest:.0f} >= 2**31, beyond the exact int32 "
-            "sum used inside a run; rescale the matrix")
     if not integer and longest > 1e37:
         raise ProblemError("distances are too large for float32 sums; rescale the matrix")
-    return d, integer
+    return d, integer, words_needed(longest, d.shape[0]) if integer else 1
 
 
-@functools.partial(jax.jit, static_argnames="integer")
-def _traced_lengths(dist: jax.Array, tours: jax.Array, integer: bool) -> jax.Array:
+def integer_lengths(edges: jax.Array, words: int) -> jax.Array:
+    """float32 tour lengths from int32 ``edges`` (..., n): one exact int32 sum (``words=1``,
+    every tour below 2**31) or :func:`exact_int_sum`, each rounded once."""
+    if words == 1:
+        return edges.sum(-1).astype(jnp.float32)
+    return exact_int_sum(edges)
+
+
+@functools.partial(jax.jit, static_argnames=("integer", "words"))
+def _traced_lengths(dist: jax.Array, tours: jax.Array, integer: bool,
+                    words: int = 1) -> jax.Array:
     tours = jnp.asarray(tours, jnp.int32)
     edges = dist[tours, jnp.roll(tours, -1, axis=-1)]
-    if integer:  # exact in int32 (the constructor checked that every tour fits)
-        return edges.astype(jnp.int32).sum(-1).astype(jnp.float32)
+    if integer:  # exact integer sums (the constructor chose the words every tour needs)
+        return integer_lengths(edges.astype(jnp.int32), words)
     return edges.sum(-1).astype(jnp.float32)
 
 
@@ -118,6 +159,8 @@ class TSP:
       optimum: known optimal tour length, or None.
       integer: every distance is an integer (TSPLIB metrics, integer matrices): tour lengths
         are then summed exactly in integers.
+      sum_words: int32 words of those sums inside a run (:func:`words_needed`: 2 when a tour
+        can reach 2**31).
     """
 
     dist: jax.Array
@@ -126,6 +169,7 @@ class TSP:
     name: str = struct.field(pytree_node=False, default="custom")
     optimum: float | None = struct.field(pytree_node=False, default=None)
     integer: bool = struct.field(pytree_node=False, default=False)
+    sum_words: int = struct.field(pytree_node=False, default=1)
 
     kind: ClassVar[str] = "graph"
 
@@ -137,13 +181,13 @@ class TSP:
     def evaluate(self, tours: jax.Array) -> Any:
         """Closed-tour lengths ``(m,)`` of tours ``(m, n)``.
 
-        Traced (inside ``jit``/``vmap``, as the driver calls it): float32, summed in int32 for
-        integer distances. Called from the host with concrete tours: every tour is checked (a
-        permutation of ``0..n-1``, else :class:`ProblemError`) and the lengths are float64,
-        exact for integer distances.
+        Traced (inside ``jit``/``vmap``, as the driver calls it): float32, exact integer sums
+        rounded once for integer distances. Called from the host with concrete tours: every
+        tour is checked (a permutation of ``0..n-1``, else :class:`ProblemError`) and the
+        lengths are float64, exact for integer distances.
         """
         if _is_traced(tours, self.dist):
-            return _traced_lengths(self.dist, tours, self.integer)
+            return _traced_lengths(self.dist, tours, self.integer, self.sum_words)
         t = np.asarray(tours)
         if t.ndim != 2 or t.shape[1] != self.n:
             raise ProblemError(
@@ -182,7 +226,7 @@ class TSP:
 
         An all-integer matrix gives exact integer tour lengths; any other is held in float32.
         """
-        d, integer = _check_matrix(d)
+        d, integer, words = _check_matrix(d)
         nbr = nearest_neighbors(d, neighbors)
         return cls(
             dist=jnp.asarray(d, jnp.float32),
@@ -191,6 +235,7 @@ class TSP:
             name=name,
             optimum=optimum,
             integer=integer,
+            sum_words=words,
         )
 
     @classmethod
