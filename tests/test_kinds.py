@@ -16,7 +16,7 @@ from eaco_jax.problems.sharding import Sharded, shard
 from eaco_jax.strategies.base import Strategy
 from eaco_jax.strategies.islands import Islands
 
-KINDS = {"graph", "path", "continuous", "multiobjective"}
+KINDS = {"graph", "path", "continuous", "multiobjective", "qd"}
 #: arguments for the registered problem families whose factory needs some
 FAMILY_ARGS = {"tsp": {"name_or_path": "eil51"}, "cec2006": {"name": "g06"}}
 

@@ -31,6 +31,7 @@ _FAMILIES: dict[str, Callable[..., Any] | str] = {
     "zdt2": "eaco_jax.problems.multiobjective:zdt2",
     "zdt3": "eaco_jax.problems.multiobjective:zdt3",
     "dtlz2": "eaco_jax.problems.multiobjective:dtlz2",
+    "rastrigin-proj": "eaco_jax.problems.qd:rastrigin_proj",
 }
 
 

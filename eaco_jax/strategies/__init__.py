@@ -1,7 +1,9 @@
 """Colony strategies: one module per algorithm, each a pure init/ask/tell over a pytree state.
 
 EACO: :class:`GraphEACO` (TSP; ``preset="paper" | "mmas" | "default"``), :class:`ContinuousEACO`,
-:class:`PathEACO`, :class:`MOEACO` (several objectives: Pareto-ranked archive). Baselines in
+:class:`PathEACO`, :class:`MOEACO` (several objectives: Pareto-ranked archive),
+:class:`MAPElites` (quality diversity: a grid archive of elites; ``variation="eaco"`` samples
+around them with the colony's kernel, ``"isoline"`` is the baseline). Baselines in
 the same contract (vmapped populations, same driver, checkpoints and sweeps): ant system / EAS,
 ACS, MMAS (a GraphEACO preset), annealing and tabu search on tours; PSO, real-coded GA,
 simulated annealing and tabu search on continuous problems; random search.
@@ -20,6 +22,7 @@ from eaco_jax.strategies.base import State, Strategy
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO, ContinuousParams, ContinuousState
 from eaco_jax.strategies.graph_eaco import GraphEACO, GraphParams, GraphState
 from eaco_jax.strategies.islands import Islands, IslandsState
+from eaco_jax.strategies.map_elites import MAPElites, MAPElitesParams, MAPElitesState
 from eaco_jax.strategies.mo_eaco import MOEACO, MOParams, MOState
 from eaco_jax.strategies.path_eaco import PathEACO, PathParams, PathState
 from eaco_jax.strategies.pso import PSO
@@ -53,6 +56,8 @@ _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
     "path-eaco": ("path_eaco:PathEACO", {}),
     "path-ga": ("path_ga:PathGA", {}),
     "mo-eaco": ("mo_eaco:MOEACO", {}),
+    "map-elites": ("map_elites:MAPElites", {"variation": "isoline"}),
+    "map-elites-eaco": ("map_elites:MAPElites", {"variation": "eaco"}),
 }
 
 
@@ -76,5 +81,5 @@ __all__ = [
     "GraphParams", "GraphState", "Islands", "IslandsState", "PathEACO", "PathParams",
     "PathState", "AntSystem", "AntColonySystem", "TourAnnealing", "TourTabu", "RandomTours",
     "RandomSearch", "PSO", "RealGA", "SimulatedAnnealing", "TabuSearch", "get", "names",
-    "MOEACO", "MOParams", "MOState",
+    "MOEACO", "MOParams", "MOState", "MAPElites", "MAPElitesParams", "MAPElitesState",
 ]
