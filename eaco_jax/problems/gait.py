@@ -175,10 +175,28 @@ class GaitProblem:
             res["fitness"] = self._penalised(res)
         return {k: v.reshape((m, r) + v.shape[1:]) for k, v in res.items()}
 
+    def walk_descriptors(self, solutions: jax.Array, worlds: Worlds | None = None
+                         ) -> dict[str, jax.Array]:
+        """What each gait ``(m, dim)`` does in each world, ``(m, R)`` (R = 1 without
+        ``worlds``), from one batched rollout: ``forward_mps`` and ``lateral_mps`` (the torso's
+        displacement in its own heading frame, + = forward / left, per second walked, until
+        the fall or the horizon; :func:`body_frame_speeds`), ``turn_deg_s`` (+ = left),
+        ``fell`` and ``fitness`` (this problem's, without the energy penalty)."""
+        m = solutions.shape[0]
+        r = 1 if worlds is None else worlds.size
+        trace = self._rollout(solutions, worlds, False)["trace"]
+        summary = self.summarize(trace)
+        res = gait_fitness(summary, self.direction_deg, self.turn)
+        fwd, lat = body_frame_speeds(trace, self.spec.control_dt, summary.fall_time)
+        out = {"forward_mps": fwd, "lateral_mps": lat, "turn_deg_s": res["turn_deg_s"],
+               "fell": res["fell"], "fitness": res["fitness"]}
+        return {k: v.reshape((m, r)) for k, v in out.items()}
+
     def _quality(self, acc, distance, worlds: Worlds | None, nb: int) -> dict:
         model = native_model(self.spec, float(self.slope_deg), self.accuracy)
         mass = float(np.sum(model.body_mass))
-        nominal = jnp.asarray(self.spec.nominal_torque, jnp.float32)
+        nominal = jnp.asarray(self.spec.nominal_torque if self.spec.has_motors else
+                              self.spec.force_limit, jnp.float32)
         if worlds is not None:
             r = worlds.size
             per_world = jnp.sum(jnp.asarray(model.body_mass) * worlds.mass_scale, -1)
@@ -216,7 +234,8 @@ class GaitProblem:
             out = {k: jnp.mean(v.astype(jnp.float32), axis=1) for k, v in res.items()}
             out["fitness"] = aggregate(res["fitness"], cfg.aggregate, cfg.alpha)
             for k in ("peak_power_w", "peak_speed_frac", "peak_torque_frac",
-                      "joint_peak_speed_frac", "joint_peak_torque_frac", "peak_current_frac",
+                      "joint_peak_speed_frac", "joint_peak_torque_frac", "joint_peak_torque_nm",
+                      "joint_peak_speed_rad_s", "peak_current_frac",
                       "peak_current_max_frac", "winding_10min_c", "winding_steady_c",
                       "winding_end_c"):
                 if k in res:
@@ -265,7 +284,8 @@ class GaitProblem:
         Returns numpy values: ``fitness``, ``speed_mps``, ``distance_m``, ``fell``,
         ``drift_deg``, ``fall_time``; ``quality`` (robots with a motor datasheet): the scalar
         energy / gait-quality metrics, ``rms_torque_frac`` {joint: RMS torque / nominal} and
-        ``overheating`` (joints above 1); with ``record`` also ``time`` (T+1,), ``joints``
+        ``overheating`` (joints above 1); ``envelope`` (every robot): the actuator envelope of
+        :func:`eaco_jax.gait.quality.envelope`; with ``record`` also ``time`` (T+1,), ``joints``
         {joint name: angles (T+1,)} for every actuated joint, ``torso_xyz`` (T+1, 3),
         ``torso_up`` (T+1, 3), ``controls`` (T, nu) (the commanded targets) and ``qpos``
         (T+1, nq) (the full configuration after each control step, for videos).
@@ -278,7 +298,7 @@ class GaitProblem:
         prob = self if backend is None and horizon is None else self.replace(
             backend=_resolve_backend(backend or self.backend),
             horizon=float(horizon if horizon is not None else self.horizon))
-        quality = prob.spec.has_motors
+        quality = True  # the actuator envelope, for every robot
         x = jnp.clip(jnp.asarray(p)[None], prob.lower, prob.upper)
         controls = couple_controls(jax.jit(prob.controls)(x), prob.spec)
         if prob.backend == "mjx":
@@ -296,10 +316,10 @@ class GaitProblem:
         res["fall_time"] = float(np.asarray(summary.fall_time)[0])
         res["backend"] = prob.backend
         res["horizon"] = prob.horizon
-        if quality:
-            q = prob._quality(jax.tree.map(jnp.asarray, out["acc"]), metrics["distance_m"],
-                              None, 1)
+        q = prob._quality(jax.tree.map(jnp.asarray, out["acc"]), metrics["distance_m"], None, 1)
+        if prob.spec.has_motors:
             res["quality"] = quality_record(q, prob.spec.joint_names)
+        res["envelope"] = ql.envelope(q, prob.spec)
         if record:
             model = native_model(prob.spec, float(prob.slope_deg), prob.accuracy)
             res["time"] = np.arange(prob.n_steps + 1) * prob.spec.control_dt
@@ -424,6 +444,28 @@ class ConstrainedGaitProblem(GaitProblem):
                 "cost": f if rep["feasible"] else math.inf,
                 "tolerance": {"inequality": 0.0, "equality": 0.0},
                 "constraints": rep["constraints"]}
+
+
+def body_frame_speeds(trace: jax.Array, dt: float, fall_time: jax.Array
+                      ) -> tuple[jax.Array, jax.Array]:
+    """Mean forward and lateral speed ``(...)`` (m/s, + = forward / left) of torso traces
+    ``(..., T + 1, 7)``: each control step's horizontal displacement projected on the torso's
+    heading at the step's start, summed until the fall (``fall_time``, s; the horizon when it
+    did not fall), over the time walked; a unicycle's ``v`` (and the sideways drift) whatever
+    the turn. Non-finite traces give 0."""
+    finite = jnp.all(jnp.isfinite(trace), axis=(-1, -2))
+    tr = jnp.nan_to_num(trace, nan=0.0, posinf=0.0, neginf=0.0)
+    step = jnp.diff(tr[..., :2], axis=-2)
+    yaw = tr[..., :-1, 6]
+    c, s = jnp.cos(yaw), jnp.sin(yaw)
+    fwd = step[..., 0] * c + step[..., 1] * s
+    lat = -step[..., 0] * s + step[..., 1] * c
+    n = jnp.round(fall_time / dt).astype(jnp.int32)
+    upto = jnp.arange(step.shape[-2]) < n[..., None]
+    walked = jnp.maximum(n.astype(jnp.float32) * dt, 1e-6)
+    f = jnp.where(finite, jnp.sum(jnp.where(upto, fwd, 0.0), -1) / walked, 0.0)
+    lt = jnp.where(finite, jnp.sum(jnp.where(upto, lat, 0.0), -1) / walked, 0.0)
+    return f, lt
 
 
 _FITNESS_KEYS = ("fitness", "distance_m", "speed_mps", "fell", "drift_deg", "fall_time",
@@ -589,4 +631,4 @@ def _resolve_impl(impl: str, backend: str) -> str:
 
 
 __all__ = ["BACKENDS", "ConstrainedGaitProblem", "GaitProblem", "RobustConfig", "known_robots",
-           "make_gait_problem", "quality_record"]
+           "body_frame_speeds", "make_gait_problem", "quality_record"]
