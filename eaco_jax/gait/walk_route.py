@@ -1,0 +1,454 @@
+"""Closed-loop walking of a planned route through a scene on native MuJoCo (issue #32, item 4).
+
+The robot stands at the route's start in the scene's model (:mod:`eaco_jax.gait.scene_world`)
+and a path-following controller steers it along the route's polyline, one step cycle at a time:
+
+* **Tracking** (:func:`track`): the route is followed segment by segment; the target is the
+  point ``lookahead`` metres ahead of the torso's projection on the current segment, never past
+  the segment's end, so the robot does not cut the corner at a waypoint (the corners are the
+  obstacles' corners grown by the clearance). A segment is done when the projection is within
+  ``capture`` of its end.
+* **Gait choice** (:func:`choose`): where the heading error to the target exceeds
+  ``turn_deg`` the robot turns on the spot with the library's left or right turning gait (the
+  planner's model of a waypoint), until the error is below ``resume_deg``; otherwise it walks
+  with the forward gait whose ``turn_rate`` is the heading error times ``steer_gain``
+  (clipped to the walk engine's bound): heading control while walking.
+* **Gait switching**: a new choice is made at the start of each step cycle; the walk engine's
+  parameters then blend linearly from the old gait to the new one over ``blend_cycles`` cycles
+  while the gait phase runs on continuously (the engine is evaluated at the phase, not at the
+  clock), so a switch never jumps the feet. The first ``RAMP_TIME`` seconds are the engine's
+  start-up ramp of the first gait.
+
+A walk succeeds when the torso comes within ``goal_radius`` (0.15 m) of the goal with no fall
+(the spec's fall rule, the torso height taken above the ground under it, ramps included) and no
+contact between any robot geom and any obstacle geom before then. Randomised worlds
+(:mod:`eaco_jax.gait.worlds`: friction, masses, motors, target noise, latency, initial pose,
+one push during the planned walking time) enter exactly as in the gait rollouts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from eaco_jax.errors import ConfigError, ProblemError
+from eaco_jax.gait import scene_world as sw
+from eaco_jax.gait.robot import RobotSpec
+from eaco_jax.gait.walk_engine import PARAM_NAMES, RAMP_TIME, UPPER, joint_targets
+from eaco_jax.gait.worlds import (
+    RobustConfig,
+    Worlds,
+    couple_controls,
+    initial_qpos,
+    native_world_models,
+    sample_worlds,
+    stream_key,
+)
+
+FORWARD, LEFT, RIGHT = "forward", "turn_left", "turn_right"
+MODES = (FORWARD, LEFT, RIGHT)
+TURN = PARAM_NAMES.index("turn_rate")
+PERIOD = PARAM_NAMES.index("period")
+MAX_CYCLE_STEPS = 64
+"""Control steps of the longest step cycle a chunk holds (the engine's period bound / dt)."""
+
+
+# --------------------------------------------------------------------------- gait library
+@dataclasses.dataclass(frozen=True)
+class WalkGaits:
+    """The controller's gait library: walk-engine parameter vectors (``PARAM_NAMES`` order)."""
+
+    forward: np.ndarray
+    turn_left: np.ndarray
+    turn_right: np.ndarray
+    source: str = ""
+
+    def of(self, mode: str) -> np.ndarray:
+        return np.asarray(getattr(self, mode), np.float64)
+
+
+def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
+    """A gait library: a shipped name (``eaco_jax/data/walk_gaits/<name>.json``) or a JSON file
+    with ``gaits.forward|turn_left|turn_right.vector``."""
+    path = Path(name_or_path)
+    if path.suffix != ".json":
+        path = Path(str(resources.files("eaco_jax") / "data" / "walk_gaits" / f"{path}.json"))
+    try:
+        data = json.loads(path.read_text())
+        vecs = {m: np.asarray(data["gaits"][m]["vector"], np.float64) for m in MODES}
+    except OSError as err:
+        raise ConfigError(f"cannot read gait library {path}: {err.strerror or err}") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
+        raise ConfigError(f"{path}: a gait library needs gaits.forward, gaits.turn_left and "
+                          f"gaits.turn_right with a 'vector' each ({type(err).__name__}: "
+                          f"{err})") from None
+    for m, v in vecs.items():
+        if v.shape != (len(PARAM_NAMES),) or not np.all(np.isfinite(v)):
+            raise ConfigError(f"{path}: gaits.{m}.vector must be {len(PARAM_NAMES)} finite "
+                              f"numbers ({', '.join(PARAM_NAMES)}), got shape {v.shape}")
+    return WalkGaits(vecs[FORWARD], vecs[LEFT], vecs[RIGHT], str(data.get("source", "")))
+
+
+# --------------------------------------------------------------------------- controller
+@dataclasses.dataclass(frozen=True)
+class Controller:
+    """Settings of the path-following controller (lengths in m, angles in deg)."""
+
+    lookahead: float = 0.6
+    capture: float = 0.3
+    turn_deg: float = 20.0
+    resume_deg: float = 10.0
+    steer_gain: float = 0.6  # forward gait's turn_rate [rad/s] per rad of heading error
+    blend_cycles: float = 2.0
+    goal_radius: float = 0.15
+
+    def __post_init__(self) -> None:
+        for name in ("lookahead", "capture", "turn_deg", "steer_gain", "blend_cycles",
+                     "goal_radius"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"controller {name} must be a finite number > 0, got {v!r}")
+        if not 0 <= self.resume_deg < self.turn_deg:
+            raise ConfigError(f"controller resume_deg must be in [0, turn_deg={self.turn_deg}),"
+                              f" got {self.resume_deg}")
+
+
+def wrap(angle: float) -> float:
+    """Angle wrapped to [-pi, pi)."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def track(route: np.ndarray, seg: int, pos: np.ndarray, ctrl: Controller) -> tuple[int, np.ndarray]:
+    """The current segment index (advanced past segments whose end the torso's projection
+    has reached within ``capture``) and the target point on it, ``lookahead`` ahead of the
+    projection and never beyond the segment's end."""
+    last = len(route) - 2
+    while True:
+        a, b = route[seg], route[seg + 1]
+        d = b - a
+        length = float(np.linalg.norm(d))
+        unit = d / max(length, 1e-12)
+        along = float((pos - a) @ unit)
+        if seg < last and (along >= length - ctrl.capture
+                           or np.linalg.norm(pos - b) <= ctrl.capture):
+            seg += 1
+            continue
+        return seg, a + unit * min(length, max(along, 0.0) + ctrl.lookahead)
+
+
+def choose(error: float, mode: str, ctrl: Controller,
+           max_turn_rate: float = float(UPPER[TURN])) -> tuple[str, float]:
+    """The gait for the next step cycle from the heading error [rad] (+: target to the left)
+    and the current mode: ``(mode, turn_rate)``; ``turn_rate`` is the forward gait's steering
+    (0 when turning on the spot)."""
+    big = math.radians(ctrl.turn_deg)
+    small = math.radians(ctrl.resume_deg)
+    turning = mode in (LEFT, RIGHT)
+    if abs(error) > big or (turning and abs(error) > small):
+        return (LEFT if error > 0 else RIGHT), 0.0
+    steer = max(-max_turn_rate, min(max_turn_rate, ctrl.steer_gain * error))
+    return FORWARD, steer
+
+
+# --------------------------------------------------------------------------- engine
+@functools.lru_cache(maxsize=8)
+def _targets_fn(spec: RobotSpec):
+    """Jitted targets ``(L, nu)`` of per-step parameters ``(L, P)`` at engine times ``(L,)``."""
+    return jax.jit(jax.vmap(lambda p, t: joint_targets(p, t, spec)))
+
+
+def _phase_time(k: int, dt: float, phase: float, period: float) -> float:
+    """The engine time that puts a gait of ``period`` at ``phase`` (cycles) with its start-up
+    ramp done; the clock itself during the first RAMP_TIME seconds."""
+    t = k * dt
+    if t < RAMP_TIME:
+        return t
+    m = math.ceil(RAMP_TIME / period) + 1
+    return (m + (phase % 1.0)) * period
+
+
+# --------------------------------------------------------------------------- worlds
+@dataclasses.dataclass
+class WorldInputs:
+    """What one randomised world changes in a walk (nominal: the defaults)."""
+
+    model: mujoco.MjModel | None = None  # None: the scene's nominal model
+    latency: int = 0
+    noise: np.ndarray | None = None  # (T, nu) target noise per control step
+    push_start: int = -1
+    push_stop: int = -1
+    push_force: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    qpos: np.ndarray | None = None  # initial configuration (None: the keyframe)
+
+
+def sample_walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, n_steps: int,
+                       push_steps: int, seed: int = 0, stream: str = "test",
+                       cfg: RobustConfig | None = None) -> tuple[list[WorldInputs], Worlds]:
+    """``n`` randomised worlds (:func:`~eaco_jax.gait.worlds.sample_worlds` on batch 0 of
+    ``stream`` of ``seed``) as walk inputs: per-world models (the ramps and obstacles take the
+    world's floor friction), ``n_steps`` control steps of target noise, a push within the
+    first ``push_steps`` control steps, the initial pose offsets."""
+    cfg = cfg or RobustConfig()
+    worlds = sample_worlds(stream_key(seed, stream), cfg, spec, model.nbody, push_steps, r=n)
+    wn = jax.tree.map(np.asarray, worlds)
+    models = native_world_models(model, spec, wn)
+    extra = sw.geom_ids(model, "ramp") + sw.geom_ids(model, "obstacle")
+    for i, m in enumerate(models):
+        m.geom_friction[extra, 0] = float(wn.friction[i])
+    keys = jax.vmap(lambda t: jax.random.fold_in(worlds.noise_key, t))(jnp.arange(n_steps))
+    noise = jax.vmap(lambda k: jax.random.normal(k, (n, spec.nu), jnp.float32))(keys)
+    noise = np.asarray(noise * worlds.noise_std)  # (T, n, nu)
+    qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names])
+    lo, hi = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
+    qinit = initial_qpos(np.asarray(model.qpos0), wn, qadr, lo, hi, xp=np)
+    out = [WorldInputs(model=models[i], latency=int(wn.latency[i]), noise=noise[:, i],
+                       push_start=int(wn.push_start[i]), push_stop=int(wn.push_stop[i]),
+                       push_force=np.asarray(wn.push_force[i], np.float64),
+                       qpos=np.asarray(qinit[i], np.float64)) for i in range(n)]
+    return out, worlds
+
+
+# --------------------------------------------------------------------------- geometry helpers
+def _ramp_planes(scene: Any) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    out = []
+    for r in scene.ramps:
+        poly = np.asarray(r.polygon, np.float64)
+        u = np.array([math.cos(math.radians(r.uphill_deg)), math.sin(math.radians(r.uphill_deg))])
+        if r.slope_deg < 0:
+            u = -u
+        out.append((poly, u, math.tan(math.radians(abs(r.slope_deg))), float((poly @ u).min())))
+    return out
+
+
+def _inside(p: np.ndarray, poly: np.ndarray) -> bool:
+    e = np.roll(poly, -1, axis=0) - poly
+    w = p - poly
+    return bool(np.all(e[:, 0] * w[:, 1] - e[:, 1] * w[:, 0] >= 0))
+
+
+def ground_height(planes: list, xy: np.ndarray) -> float:
+    """Height [m] of the ground (floor or ramp top) under the point ``xy``."""
+    for poly, u, tan, low in planes:
+        if _inside(xy, poly):
+            return tan * (float(xy @ u) - low)
+    return 0.0
+
+
+def polygon_distance(p: np.ndarray, poly: np.ndarray) -> float:
+    """Euclidean distance from ``p`` to a convex counter-clockwise polygon (0 inside)."""
+    if _inside(p, poly):
+        return 0.0
+    a, b = poly, np.roll(poly, -1, axis=0)
+    d = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, d) / np.einsum("ij,ij->i", d, d), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + t[:, None] * d - p, axis=1)))
+
+
+# --------------------------------------------------------------------------- the walk
+def start_heading(scene: Any, route: np.ndarray) -> float:
+    """The scene's start heading [rad] if it gives one, else the first segment's heading
+    (the planner's free start)."""
+    if scene.start_heading_deg is not None:
+        return math.radians(scene.start_heading_deg)
+    d = route[1] - route[0]
+    return math.atan2(d[1], d[0])
+
+
+def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
+         ctrl: Controller | None = None, *, max_time: float = 60.0,
+         model: mujoco.MjModel | None = None, world: WorldInputs | None = None,
+         record_every: int = 5, distmax: float = 1.0,
+         decisions: list | None = None) -> dict[str, Any]:
+    """Walk ``route`` (``(k, 2)`` waypoints, start first) through ``scene`` for at most
+    ``max_time`` seconds; the walk's record (trajectory, success, times, closest approach).
+
+    ``model``: the scene's model (:func:`~eaco_jax.gait.scene_world.scene_model` with the robot
+    facing :func:`start_heading`), built if not given; ``world`` one randomised world's inputs.
+    The trajectory keeps every ``record_every``-th control step; ``decisions``, if a list,
+    receives ``(t, segment, heading error, mode, steer)`` at every step cycle.
+    """
+    ctrl = ctrl or Controller()
+    route = np.asarray(route, np.float64)
+    if route.ndim != 2 or route.shape[1] != 2 or len(route) < 2:
+        raise ProblemError(f"route must be (k >= 2, 2) waypoints, got shape {route.shape}")
+    if not (math.isfinite(max_time) and max_time > 0):
+        raise ConfigError(f"max_time must be a finite number > 0, got {max_time!r}")
+    heading0 = start_heading(scene, route)
+    if model is None:
+        model = sw.scene_model(scene, spec, start_heading=heading0)
+    world = world or WorldInputs()
+    m = world.model or model
+    data = mujoco.MjData(m)
+    data.qpos[:] = (world.qpos if world.qpos is not None
+                    else sw.start_qpos(spec, m, tuple(route[0]), heading0))
+    data.qpos[:2] = route[0]
+    data.qpos[3:7] = [math.cos(heading0 / 2), 0.0, 0.0, math.sin(heading0 / 2)]
+    data.ctrl[:] = spec.stand_ctrl
+    mujoco.mj_forward(m, data)
+    dt = spec.control_dt
+    sub = int(round(dt / m.opt.timestep))
+    n_steps = int(math.ceil(max_time / dt))
+    targets_fn = _targets_fn(spec)
+    obstacles = sw.geom_ids(m, "obstacle")
+    robot = sw.robot_geom_ids(m)
+    polys = [np.asarray(o.polygon, np.float64) for o in scene.obstacles]
+    planes = _ramp_planes(scene)
+    goal = np.asarray(route[-1], np.float64)
+    cos_tilt = math.cos(math.radians(spec.fall_tilt_deg))
+
+    mode, steer, seg = FORWARD, 0.0, 0
+    p_old = p_new = None
+    phase, alpha = 0.0, 1.0
+    chunk: np.ndarray | None = None
+    chunk_pos = 0
+    history: list[np.ndarray] = []
+    rows: list[list[float]] = []
+    modes_time = {m_: 0.0 for m_ in MODES}
+    closest, closest_obstacle = distmax, -1
+    contact_time, contact_obstacle = None, -1
+    fell_time = reach_time = None
+    switches = 0
+    k = 0
+    yaws: list[float] = [heading0]
+    for k in range(n_steps):
+        pos = data.qpos[:2].copy()
+        if chunk is None or chunk_pos >= len(chunk):
+            yaw = _mean_angle(yaws[-max(1, len(chunk) if chunk is not None else 1):])
+            seg, target = track(route, seg, pos, ctrl)
+            if np.linalg.norm(goal - pos) < ctrl.lookahead and seg == len(route) - 2:
+                target = goal
+            error = wrap(math.atan2(target[1] - pos[1], target[0] - pos[0]) - yaw)
+            new_mode, steer = choose(error, mode, ctrl)
+            if k * dt < RAMP_TIME and p_new is not None:
+                new_mode, steer = mode, float(p_new[TURN])  # no switch during the start-up
+            params = gaits.of(new_mode)
+            if new_mode == FORWARD:
+                params = params.copy()
+                params[TURN] = steer
+            if p_new is None:
+                p_old = p_new = params
+            else:
+                p_old = (1 - alpha) * p_old + alpha * p_new
+                p_new = params
+                alpha = 0.0
+            if decisions is not None:
+                decisions.append((round(k * dt, 3), seg, error, new_mode, steer))
+            switches += int(new_mode != mode)
+            mode = new_mode
+            chunk, phase, alpha = _cycle(p_old, p_new, alpha, phase, k, dt,
+                                         ctrl.blend_cycles, targets_fn)
+            chunk_pos = 0
+        cmd = chunk[chunk_pos]
+        chunk_pos += 1
+        history.append(cmd)
+        u = history[max(0, len(history) - 1 - world.latency)]
+        if world.noise is not None:
+            u = u + world.noise[min(k, len(world.noise) - 1)]
+        data.ctrl[:] = couple_controls(np.asarray(u)[None], spec, xp=np)[0]
+        data.qfrc_applied[:3] = (world.push_force if world.push_start <= k < world.push_stop
+                                 else 0.0)
+        for _ in range(sub):
+            mujoco.mj_step(m, data)
+        modes_time[mode] += dt
+        t = (k + 1) * dt
+        pos = data.qpos[:2]
+        yaws.append(_yaw(data.qpos[3:7]))
+        # contacts and the closest approach (obstacles whose bounding circle is near)
+        near = np.array([polygon_distance(pos, p) < distmax + 0.4 for p in polys], bool)
+        if near.any():
+            dist = sw.obstacle_distances(m, data, robot, obstacles, near, distmax)
+            j = int(np.argmin(dist))
+            if dist[j] < closest:
+                closest, closest_obstacle = float(dist[j]), j
+            if dist[j] <= 0.0 and contact_time is None:
+                contact_time, contact_obstacle = t, j
+        z = float(data.qpos[2]) - ground_height(planes, pos)
+        up_z = 1.0 - 2.0 * float(data.qpos[4] ** 2 + data.qpos[5] ** 2)
+        if (k + 1) % record_every == 0:
+            rows.append([round(t, 3), float(pos[0]), float(pos[1]), _yaw(data.qpos[3:7]),
+                         MODES.index(mode)])
+        if z < spec.fall_height or up_z < cos_tilt:
+            fell_time = t
+            break
+        if np.linalg.norm(goal - pos) <= ctrl.goal_radius:
+            reach_time = t
+            break
+    t_end = (k + 1) * dt
+    if not rows or rows[-1][0] != round(t_end, 3):
+        rows.append([round(t_end, 3), float(data.qpos[0]), float(data.qpos[1]),
+                     _yaw(data.qpos[3:7]), MODES.index(mode)])
+    reached = reach_time is not None
+    return {
+        "success": bool(reached and contact_time is None and fell_time is None),
+        "reached": reached,
+        "reach_time_s": reach_time,
+        "fell": fell_time is not None,
+        "fall_time_s": fell_time,
+        "contact": contact_time is not None,
+        "contact_time_s": contact_time,
+        "contact_obstacle": contact_obstacle if contact_time is not None else None,
+        "closest_approach_m": closest,
+        "closest_obstacle": closest_obstacle if closest < distmax else None,
+        "goal_distance_m": float(np.linalg.norm(goal - data.qpos[:2])),
+        "walked_time_s": t_end,
+        "walked_length_m": _length(np.asarray([r[1:3] for r in rows])),
+        "mode_seconds": {k_: round(v, 3) for k_, v in modes_time.items()},
+        "gait_switches": switches,
+        "trajectory_columns": ["t", "x", "y", "yaw", "mode"],
+        "trajectory": rows,
+    }
+
+
+def _cycle(p_old: np.ndarray, p_new: np.ndarray, alpha: float, phase: float, k0: int,
+           dt: float, blend_cycles: float, targets_fn) -> tuple[np.ndarray, float, float]:
+    """Targets ``(L, nu)`` of one step cycle from control step ``k0`` (until the phase passes
+    its next whole cycle), the parameters blending from ``p_old`` to ``p_new``; the phase and
+    the blend after it."""
+    params, times = [], []
+    end = math.floor(phase + 1e-9) + 1
+    k = k0
+    while len(params) < MAX_CYCLE_STEPS:
+        p = (1 - alpha) * p_old + alpha * p_new
+        params.append(p)
+        times.append(_phase_time(k, dt, phase, float(p[PERIOD])))
+        phase += dt / float(p[PERIOD])
+        alpha = min(1.0, alpha + dt / (blend_cycles * float(p_new[PERIOD])))
+        k += 1
+        if phase >= end - 1e-9:
+            break
+    n = len(params)
+    pad = MAX_CYCLE_STEPS - n
+    P = np.concatenate([np.asarray(params), np.repeat(np.asarray(params)[-1:], pad, 0)])
+    T = np.concatenate([np.asarray(times), np.full(pad, times[-1])])
+    out = np.asarray(targets_fn(jnp.asarray(P, jnp.float32), jnp.asarray(T, jnp.float32)))
+    return out[:n].astype(np.float64), phase, alpha
+
+
+def _mean_angle(angles: list[float]) -> float:
+    """Circular mean [rad] (the torso's yaw over a step cycle, without its sway)."""
+    a = np.asarray(angles)
+    return math.atan2(float(np.sin(a).mean()), float(np.cos(a).mean()))
+
+
+def _yaw(q: np.ndarray) -> float:
+    w, x, y, z = (float(v) for v in q)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _length(xy: np.ndarray) -> float:
+    return float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))) if len(xy) > 1 else 0.0
+
+
+__all__ = ["FORWARD", "LEFT", "MODES", "RIGHT", "Controller", "WalkGaits", "WorldInputs",
+           "choose", "ground_height", "load_walk_gaits", "polygon_distance",
+           "sample_walk_worlds", "start_heading", "track", "walk", "wrap"]

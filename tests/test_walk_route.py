@@ -1,0 +1,163 @@
+"""Walking a planned route: the scene's geoms in the MuJoCo model, the path-following
+controller's choices, and a short real walk on native MuJoCo (issue #32, item 4)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import mujoco
+import numpy as np
+import pytest
+
+from eaco_jax.errors import ConfigError
+from eaco_jax.gait import scene_world as sw
+from eaco_jax.gait import walk_route as wr
+from eaco_jax.gait.robot import load_robot
+from eaco_jax.problems.scenes import Obstacle, Ramp, Scene
+
+
+@pytest.fixture(scope="module")
+def nao():
+    return load_robot("nao")
+
+
+def _scene(**kw) -> Scene:
+    base = dict(name="t", bounds=(0.0, 0.0, 4.0, 3.0), start=(0.5, 0.5), goal=(3.5, 2.5))
+    base.update(kw)
+    return Scene(**base)
+
+
+SQUARE = ((1.0, 1.0), (2.0, 1.0), (2.0, 1.5), (1.0, 1.5))  # a rectangle: a box geom
+PENTAGON = ((3.0, 0.2), (3.6, 0.4), (3.7, 1.0), (3.2, 1.3), (2.8, 0.8))  # a mesh geom
+RAMP = Ramp(((0.5, 2.0), (2.5, 2.0), (2.5, 2.8), (0.5, 2.8)), slope_deg=5.0, uphill_deg=0.0)
+
+
+def _surface_height(model, data, x: float, y: float) -> float:
+    """Height of the first surface a ray cast straight down at (x, y) hits (static geoms)."""
+    geomid = np.zeros(1, np.int32)
+    dist = mujoco.mj_ray(model, data, np.array([x, y, 3.0]), np.array([0.0, 0.0, -1.0]),
+                         None, 1, -1, geomid)
+    return 3.0 - dist, int(geomid[0])
+
+
+def test_scene_geoms_stand_where_the_scene_says(nao):
+    scene = _scene(obstacles=(Obstacle(SQUARE, 0.4), Obstacle(PENTAGON, 0.7)), ramps=(RAMP,))
+    model = sw.scene_model(scene, nao, start_heading=0.3)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    obst, ramps = sw.geom_ids(model, "obstacle"), sw.geom_ids(model, "ramp")
+    assert len(obst) == 2 and len(ramps) == 1
+    assert model.geom_type[obst[0]] == mujoco.mjtGeom.mjGEOM_BOX
+    assert model.geom_type[obst[1]] == mujoco.mjtGeom.mjGEOM_MESH
+    # a ray down inside each footprint lands on its top; just outside, on the floor
+    for gid, poly, h in ((obst[0], SQUARE, 0.4), (obst[1], PENTAGON, 0.7)):
+        c = np.mean(poly, axis=0)
+        z, hit = _surface_height(model, data, *c)
+        assert hit == gid and z == pytest.approx(h, abs=1e-6)
+        for v in np.asarray(poly):  # corners pulled 1 cm in: on top; pushed 1 cm out: floor
+            inward = 0.01 * (c - v) / np.linalg.norm(c - v)
+            z_in, hit_in = _surface_height(model, data, *(v + inward))
+            assert hit_in == gid and z_in == pytest.approx(h, abs=1e-6)
+            z_out, hit_out = _surface_height(model, data, *(v - inward))
+            assert hit_out not in (gid,) and z_out == pytest.approx(0.0, abs=1e-6)
+    # the ramp rises 5 deg towards +x from its low edge at x = 0.5
+    for x in (0.6, 1.5, 2.4):
+        z, hit = _surface_height(model, data, x, 2.4)
+        assert hit == ramps[0]
+        assert z == pytest.approx(math.tan(math.radians(5.0)) * (x - 0.5), abs=1e-6)
+    # the robot stands at the start, facing the start heading
+    assert data.qpos[:2] == pytest.approx([0.5, 0.5])
+    assert wr._yaw(data.qpos[3:7]) == pytest.approx(0.3, abs=1e-6)
+    # obstacles touch the soles as the floor does; the robot's other geoms touch nothing
+    floor = model.geom("floor").id
+    for g in obst + ramps:
+        assert (model.geom_contype[g], model.geom_conaffinity[g]) == (
+            model.geom_contype[floor], model.geom_conaffinity[floor])
+
+
+def test_ramp_heights_fall_the_other_way_for_a_negative_slope():
+    poly = np.array(RAMP.polygon)
+    up = sw.ramp_heights(poly, 5.0, 0.0)
+    down = sw.ramp_heights(poly, -5.0, 0.0)
+    assert up.min() == 0.0 and down.min() == 0.0
+    assert np.allclose(up + down, up.max())  # mirror images: high where the other is low
+    assert up[1] == pytest.approx(2.0 * math.tan(math.radians(5.0)))
+
+
+def test_rectangle_is_recognised_and_a_rhombus_is_not():
+    centre, half, yaw = sw.rectangle(np.array(SQUARE))
+    assert centre == pytest.approx([1.5, 1.25]) and half == pytest.approx([0.5, 0.25])
+    assert yaw == pytest.approx(0.0)
+    assert sw.rectangle(np.array([(0, 0), (2, 0), (3, 1), (1, 1)], float)) is None
+
+
+def test_obstacle_distance_finds_a_contact(nao):
+    box = ((0.55, -0.3), (0.9, -0.3), (0.9, 0.3), (0.55, 0.3))
+    scene = _scene(start=(0.0, 0.0), obstacles=(Obstacle(box, 0.5),))
+    model = sw.scene_model(scene, nao)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    robot, obst = sw.robot_geom_ids(model), sw.geom_ids(model, "obstacle")
+    far = sw.obstacle_distances(model, data, robot, obst, np.array([True]), 1.0)[0]
+    assert 0.2 < far < 0.55
+    data.qpos[0] = far + 0.02  # moved 2 cm past the gap: overlap
+    mujoco.mj_forward(model, data)
+    near = sw.obstacle_distances(model, data, robot, obst, np.array([True]), 1.0)[0]
+    assert near == pytest.approx(-0.02, abs=2e-3)
+
+
+# --------------------------------------------------------------------------- controller
+def test_choose_turns_on_the_spot_for_a_large_error_and_steers_a_small_one():
+    c = wr.Controller(turn_deg=20.0, resume_deg=8.0, steer_gain=1.0)
+    assert wr.choose(math.radians(40), wr.FORWARD, c) == (wr.LEFT, 0.0)
+    assert wr.choose(math.radians(-40), wr.FORWARD, c) == (wr.RIGHT, 0.0)
+    mode, steer = wr.choose(math.radians(10), wr.FORWARD, c)
+    assert mode == wr.FORWARD and steer == pytest.approx(math.radians(10))
+    mode, steer = wr.choose(math.radians(-10), wr.FORWARD, c)
+    assert mode == wr.FORWARD and steer == pytest.approx(-math.radians(10))
+    # hysteresis: a turn goes on until the error is below resume_deg
+    assert wr.choose(math.radians(10), wr.LEFT, c)[0] == wr.LEFT
+    assert wr.choose(math.radians(5), wr.LEFT, c)[0] == wr.FORWARD
+    # the steering is clipped to the walk engine's turn-rate bound
+    assert wr.choose(math.radians(12), wr.FORWARD, wr.Controller(steer_gain=5.0))[1] == \
+        pytest.approx(0.3)
+
+
+def test_track_stays_on_the_segment_and_moves_on_at_its_end():
+    route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
+    c = wr.Controller(lookahead=0.5, capture=0.1)
+    seg, target = wr.track(route, 0, np.array([0.5, 0.2]), c)
+    assert seg == 0 and target == pytest.approx([1.0, 0.0])
+    seg, target = wr.track(route, 0, np.array([1.8, 0.1]), c)  # no corner cutting
+    assert seg == 0 and target == pytest.approx([2.0, 0.0])
+    seg, target = wr.track(route, 0, np.array([1.95, 0.0]), c)
+    assert seg == 1 and target == pytest.approx([2.0, 0.5])
+    # the last segment is never left
+    seg, _ = wr.track(route, 1, np.array([2.0, 2.5]), c)
+    assert seg == 1
+
+
+def test_bad_controller_settings_are_one_line():
+    with pytest.raises(ConfigError, match="resume_deg"):
+        wr.Controller(turn_deg=10.0, resume_deg=12.0)
+    with pytest.raises(ConfigError, match="lookahead"):
+        wr.Controller(lookahead=-1.0)
+
+
+def test_ground_height_and_polygon_distance():
+    planes = wr._ramp_planes(SimpleNamespace(ramps=(RAMP,)))
+    assert wr.ground_height(planes, np.array([1.5, 2.4])) == pytest.approx(
+        math.tan(math.radians(5.0)))
+    assert wr.ground_height(planes, np.array([1.5, 1.0])) == 0.0
+    sq = np.array(SQUARE)
+    assert wr.polygon_distance(np.array([1.5, 1.2]), sq) == 0.0
+    assert wr.polygon_distance(np.array([2.3, 1.2]), sq) == pytest.approx(0.3)
+    assert wr.polygon_distance(np.array([2.3, 1.9]), sq) == pytest.approx(0.5)
+
+
+def test_library_turning_gaits_step_in_place(nao):
+    g = wr.load_walk_gaits("nao")
+    assert g.turn_left[0] == 0.0 and g.turn_right[0] == 0.0
+    assert g.turn_left[wr.TURN] > 0 > g.turn_right[wr.TURN]
+    assert g.forward[0] > 0.05
