@@ -670,8 +670,8 @@ def leg_ik_rows() -> None:
     record("`eaco gait --robot op3 --ik analytic`", "CLI",
            lambda: cli("gait", "--robot", "op3", "--ik", "analytic", *op3_tiny),
            test="tests/test_robot_gaits.py::test_problem_controls_use_its_ik")
-    record("`eaco gait --robot go2 --penalty cot` (no motor datasheet)", "CLI",
-           lambda: cli("gait", "--robot", "go2", "--penalty", "cot", "--penalty-weight", "0.1",
+    record("`eaco gait --robot ant --penalty cot` (no motor datasheet)", "CLI",
+           lambda: cli("gait", "--robot", "ant", "--penalty", "cot", "--penalty-weight", "0.1",
                        *op3_tiny),
            test="tests/test_robot_gaits.py::test_robust_worlds_and_trials_without_a_motor_datasheet")
 

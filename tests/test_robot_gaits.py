@@ -173,11 +173,22 @@ def test_arm_swing_joint_must_turn_sideways(tmp_path):
                          jnp.float32(0.5), spec)
 
 
-def test_robust_worlds_and_trials_without_a_motor_datasheet():
+def _go2_without_motors(tmp_path) -> str:
+    """The Go2's spec less its ``motors`` block, in ``tmp_path``: a robot without motor data."""
+    raw = json.loads((ROBOTS_DIR / "go2.json").read_text())
+    raw.pop("motors")
+    raw["xml"] = str(ROBOTS_DIR / "unitree_go2" / "scene.xml")
+    path = tmp_path / "go2_plain.json"
+    path.write_text(json.dumps(raw))
+    return str(path)
+
+
+def test_robust_worlds_and_trials_without_a_motor_datasheet(tmp_path):
     from eaco_jax.gait.validate import evaluate_trials
     from eaco_jax.problems.gait import RobustConfig, make_gait_problem
 
-    problem = make_gait_problem("go2", backend="native", horizon=0.6,
+    plain = _go2_without_motors(tmp_path)
+    problem = make_gait_problem(plain, backend="native", horizon=0.6,
                                 robust=RobustConfig(R=2, seed=5))
     assert not problem.spec.has_motors
     x = jnp.asarray(np.stack([problem.lower, problem.upper]) * 0.5 + 0.25 * (
@@ -189,7 +200,7 @@ def test_robust_worlds_and_trials_without_a_motor_datasheet():
     assert math.isnan(trials["mean_power_w_mean"])  # energy needs a datasheet
     assert trials["speed_mps_ci95"] > 0.0  # the worlds differ
     with pytest.raises(ProblemError, match="energy penalty needs one"):
-        make_gait_problem("go2", backend="native", horizon=0.6, penalty="cot")
+        make_gait_problem(plain, backend="native", horizon=0.6, penalty="cot")
 
 
 @pytest.mark.parametrize("robot,ankle", [("nao", "LAnklePitch"), ("op3", "l_ank_pitch")])

@@ -3,9 +3,11 @@
 Both backends feed the same functions (``xp`` = ``numpy`` on the host for native MuJoCo,
 ``jax.numpy`` inside MJX's scan), so the definitions exist once:
 
-* drive torque at a joint during a physics step: ``tau = clip(kp (clip(ctrl) - q), +-stall) -
-  damping * qdot`` with ``q`` before and ``qdot`` after the step (what implicitfast applies: the
-  servo force plus back-EMF and friction drag);
+* drive torque at a joint during a physics step: ``tau = clip(kp (clip(ctrl) - q) - kd qdot,
+  +-stall) - damping * qdot`` with ``q`` before and ``qdot`` after the step (what implicitfast
+  applies: the servo force, with the servo's own velocity gain ``kd`` where the MJCF has one,
+  plus the joint's damping: the NAO's back-EMF and friction drag, a Menagerie model's joint
+  damping);
 * mechanical power = sum over joints of ``max(tau * qdot, 0)`` (positive work only: NAO's motors
   do not recover energy); energy = its time integral; mean power = energy / time walked; peak
   power = its largest physics-step value;
@@ -14,6 +16,10 @@ Both backends feed the same functions (``xp`` = ``numpy`` on the host for native
 * peak joint speed as a fraction of the motor's no-load speed, peak |tau| as a fraction of its
   stall torque, RMS tau per joint as a fraction of its nominal (continuous) torque: above 1 the
   motor would overheat in sustained walking;
+* the actuator envelope per joint (:func:`envelope`): RMS and peak |tau| in N m and peak |qdot|
+  in rad/s against the datasheet's nominal torque, stall torque and no-load speed, or, for a
+  robot without motor data, the peak and RMS torque against the actuator's forcerange (the
+  MJCF has no joint speed limit, so the speed is reported without one);
 * per control step, from the sole spheres: a foot is in contact when its lowest sphere is within
   2 mm of the floor; foot slip = horizontal distance a foot's centre moves between two control
   steps while in contact at both (summed over feet, metres); airborne fraction = share of control
@@ -49,8 +55,9 @@ SOLES_PER_FOOT = 4
 
 
 class MotorParams(NamedTuple):
-    """Per actuator ``(..., nu)``: servo gain, stall torque (force clamp), joint damping,
-    no-load speed, nominal torque, control range."""
+    """Per actuator ``(..., nu)``: servo gain, force clamp (the MJCF's forcerange: the NAO's
+    stall torque), joint damping, no-load speed, nominal torque, control range and the servo's
+    velocity gain (0 for a pure position servo)."""
 
     kp: object
     stall: object
@@ -59,26 +66,33 @@ class MotorParams(NamedTuple):
     nominal: object
     ctrl_lo: object
     ctrl_hi: object
+    kd: object = 0.0
 
 
 def motor_params(fields: dict, spec, act_dofs, ctrlrange, stall_scale=1.0, speed_scale=1.0,
                  xp=jnp) -> MotorParams:
-    """:class:`MotorParams` from (possibly per-world) model fields and the spec's datasheet."""
+    """:class:`MotorParams` from (possibly per-world) model fields and the spec's datasheet;
+    without one the nominal torque is the force limit and the no-load speed unbounded."""
+    if spec.has_motors:
+        speed, nominal = spec.no_load_speed, spec.nominal_torque
+    else:
+        speed, nominal = (np.inf,) * spec.nu, spec.force_limit
     return MotorParams(
         kp=xp.asarray(fields["actuator_gainprm"])[..., 0],
         stall=xp.asarray(fields["actuator_forcerange"])[..., 1],
         damping=xp.asarray(fields["dof_damping"])[..., np.asarray(act_dofs)],
-        no_load_speed=xp.asarray(spec.no_load_speed) * speed_scale,
-        nominal=xp.asarray(spec.nominal_torque) * stall_scale,
+        no_load_speed=xp.asarray(speed) * speed_scale,
+        nominal=xp.asarray(nominal) * stall_scale,
         ctrl_lo=xp.asarray(ctrlrange[:, 0]),
         ctrl_hi=xp.asarray(ctrlrange[:, 1]),
+        kd=-xp.asarray(fields["actuator_biasprm"])[..., 2],
     )
 
 
 def drive_torque(q, qdot, ctrl, mp: MotorParams, xp=jnp):
     """The torque the drive applies to each joint in a physics step (see module docstring)."""
     u = xp.clip(ctrl, mp.ctrl_lo, mp.ctrl_hi)
-    force = xp.clip(mp.kp * (u - q), -mp.stall, mp.stall)
+    force = xp.clip(mp.kp * (u - q) - mp.kd * qdot, -mp.stall, mp.stall)
     return force - mp.damping * qdot
 
 
@@ -90,6 +104,7 @@ def new_acc(batch: tuple[int, ...], nu: int, xp=jnp, motor: bool = False) -> dic
         "energy": z(), "peak_power": z(), "steps": z(), "ctrl_steps": z(), "air_steps": z(),
         "slip": z(), "min_gap": xp.full(batch, np.inf, xp.float32),
         "peak_speed": z(nu), "peak_torque": z(nu), "sum_tau2": z(nu),
+        "peak_tau": z(nu), "peak_qdot": z(nu),
         "prev_xy": z(2, 2), "prev_contact": xp.zeros(batch + (2,), bool),
     }
     if motor:
@@ -135,6 +150,9 @@ def add_physics(acc: dict, q, qdot, ctrl, alive, mp: MotorParams, dt: float, xp=
     torque = xp.where(m, xp.abs(tau) / mp.stall, 0.0)
     out["peak_torque"] = xp.maximum(acc["peak_torque"], xp.max(torque, axis=-2))
     out["sum_tau2"] = acc["sum_tau2"] + xp.sum(xp.where(m, tau * tau, 0.0), axis=-2)
+    out["peak_tau"] = xp.maximum(acc["peak_tau"], xp.max(xp.where(m, xp.abs(tau), 0.0), axis=-2))
+    out["peak_qdot"] = xp.maximum(acc["peak_qdot"],
+                                  xp.max(xp.where(m, xp.abs(qdot), 0.0), axis=-2))
     if el is not None:
         out.update(_add_electrics(acc, tau, qdot, m, dt, el, step0, xp))
     return out
@@ -168,7 +186,15 @@ def _add_electrics(acc: dict, tau, qdot, m, dt: float, el: Electrics, step0, xp)
 
 def add_control(acc: dict, soles, alive, normal, radius: float, xp=jnp) -> dict:
     """Accumulate control steps: sole-sphere centres ``soles`` ``(B, K, 8, 3)`` (left foot's four
-    first), ``alive`` ``(B, K)``, floor ``normal`` (3,) through the origin."""
+    first), ``alive`` ``(B, K)``, floor ``normal`` (3,) through the origin. Feet of another
+    layout (not four sole spheres on each of two feet: the Menagerie robots) count the control
+    steps only; their slip, airborne fraction and foot gap stay NaN."""
+    if soles.shape[-2] != 2 * SOLES_PER_FOOT:
+        out = dict(acc)
+        out["ctrl_steps"] = acc["ctrl_steps"] + xp.sum(alive, axis=-1)
+        for k in ("slip", "air_steps", "min_gap"):
+            out[k] = xp.full_like(acc[k], np.nan)
+        return out
     height = soles @ xp.asarray(normal, xp.float32)  # (B, K, 8)
     feet = height.reshape(height.shape[:-1] + (2, SOLES_PER_FOOT))
     contact = xp.min(feet, axis=-1) < radius + CONTACT_TOL  # (B, K, 2)
@@ -211,6 +237,9 @@ def finalize(acc: dict, distance, mass, dt: float, nominal, motor: mo.MotorModel
         "joint_peak_speed_frac": acc["peak_speed"],
         "joint_peak_torque_frac": acc["peak_torque"],
         "rms_torque_frac": rms,
+        "joint_peak_torque_nm": acc["peak_tau"],
+        "joint_rms_torque_nm": jnp.sqrt(acc["sum_tau2"] / steps[..., None]),
+        "joint_peak_speed_rad_s": acc["peak_qdot"],
         "foot_slip_m": acc["slip"],
         "airborne_fraction": acc["air_steps"] / jnp.maximum(acc["ctrl_steps"], 1.0),
         "min_foot_gap_m": acc["min_gap"],
@@ -245,6 +274,86 @@ def _finalize_electrics(acc, distance, mass, seconds, steps, mm: mo.MotorModel) 
         "min_endurance_min": f32(jnp.min(endurance, axis=-1)),
         "peak_current_max_frac": f32(jnp.max(acc["peak_i"] / mm.i_limit, axis=-1)),
     }
+
+
+ENVELOPE_COLUMNS = ("rms_torque_nm", "rms_torque_frac", "peak_torque_nm", "peak_torque_frac",
+                    "peak_speed_rad_s", "peak_speed_frac")
+
+
+def envelope_limits(spec) -> dict[str, object]:
+    """What the envelope compares with, per actuator: ``rms`` (the datasheet's nominal torque,
+    else the force limit), ``peak`` (stall torque, else the force limit), ``speed`` (no-load
+    speed, else None: an MJCF has no joint speed limit) and ``basis`` naming them."""
+    if spec.has_motors:
+        return {"rms": np.asarray(spec.nominal_torque), "peak": np.asarray(spec.stall_torque),
+                "speed": np.asarray(spec.no_load_speed),
+                "basis": "motor data: RMS torque / nominal (continuous) torque, peak torque / "
+                         "stall torque, peak speed / no-load speed"}
+    force = np.asarray(spec.force_limit)
+    return {"rms": force, "peak": force, "speed": None,
+            "basis": "no motor data: RMS and peak torque / the actuator's forcerange, peak "
+                     "speed without a limit (the MJCF has none)"}
+
+
+def envelope(q: dict, spec) -> dict[str, object]:
+    """The actuator envelope of one gait (``q``: :func:`finalize` output with a leading axis of
+    1): per joint :data:`ENVELOPE_COLUMNS` (a fraction is None where the limit is missing or
+    unbounded), each joint's ``limits``, the worst joint of each fraction and ``overheating``
+    (joints whose RMS torque exceeds their motor's nominal torque; only with motor data)."""
+    nu = spec.nu
+    row = lambda k: np.asarray(q[k], np.float64).reshape(-1, nu)[0]  # noqa: E731
+    vals = {"rms": row("joint_rms_torque_nm"), "peak": row("joint_peak_torque_nm"),
+            "speed": row("joint_peak_speed_rad_s")}
+    lim = envelope_limits(spec)
+
+    def frac(key):
+        limit = lim[key]
+        if limit is None:
+            return [None] * nu
+        return [float(a / b) if np.isfinite(b) and b > 0 else None
+                for a, b in zip(vals[key], np.asarray(limit, np.float64), strict=True)]
+
+    cols = {"rms_torque_nm": vals["rms"].tolist(), "rms_torque_frac": frac("rms"),
+            "peak_torque_nm": vals["peak"].tolist(), "peak_torque_frac": frac("peak"),
+            "peak_speed_rad_s": vals["speed"].tolist(), "peak_speed_frac": frac("speed")}
+    names = spec.joint_names
+    joints = {n: {c: cols[c][j] for c in ENVELOPE_COLUMNS} for j, n in enumerate(names)}
+
+    def limit(key, j):
+        v = lim[key]
+        return None if v is None or not np.isfinite(v[j]) else float(v[j])
+
+    worst = {}
+    for c in ("rms_torque_frac", "peak_torque_frac", "peak_speed_frac"):
+        known = [(v, n) for n, v in zip(names, cols[c], strict=True) if v is not None]
+        worst[c] = {"joint": max(known)[1], "value": max(known)[0]} if known else None
+    hot = ([n for n, v in zip(names, cols["rms_torque_frac"], strict=True)
+            if v is not None and v > 1.0] if spec.has_motors else [])
+    return {"basis": lim["basis"], "motor_data": bool(spec.has_motors),
+            "limits": {n: {"rms_nm": limit("rms", j), "peak_nm": limit("peak", j),
+                           "speed_rad_s": limit("speed", j)} for j, n in enumerate(names)},
+            "joints": joints, "worst": worst, "overheating": hot}
+
+
+def envelope_table(env: dict[str, object]) -> str:
+    """The envelope as text: one row per joint, then the worst joint of each fraction and the
+    joints that would overheat."""
+    def cell(v, width):
+        return f"{'-':>{width}}" if v is None else f"{v:{width}.2f}"
+
+    rms, peak, speed = (("/nominal", "/stall", "/no-load") if env["motor_data"] else
+                        ("/force", "/force", "/limit"))
+    lines = [f"actuator envelope ({env['basis']}):",
+             f"  {'joint':<16} {'RMS N m':>8} {rms:>8} {'peak N m':>8} {peak:>7} "
+             f"{'peak rad/s':>10} {speed:>8}"]
+    for name, r in env["joints"].items():
+        lines.append(f"  {name:<16} {cell(r['rms_torque_nm'], 8)} {cell(r['rms_torque_frac'], 8)}"
+                     f" {cell(r['peak_torque_nm'], 8)} {cell(r['peak_torque_frac'], 7)}"
+                     f" {cell(r['peak_speed_rad_s'], 10)} {cell(r['peak_speed_frac'], 8)}")
+    worst = [f"{c} {w['joint']} {w['value']:.2f}" for c, w in env["worst"].items() if w]
+    lines.append("  worst: " + (", ".join(worst) if worst else "-") + "; overheating: "
+                 + (", ".join(env["overheating"]) if env["overheating"] else "none"))
+    return "\n".join(lines)
 
 
 def overheating(rms_torque_frac, joint_names) -> list[str]:

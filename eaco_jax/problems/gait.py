@@ -587,7 +587,7 @@ def make_gait_problem(
         raise ProblemError(f"penalty_weight must be >= 0, got {penalty_weight}")
     if penalty is not None and not spec.has_motors:
         raise ProblemError(f"robot {spec.name!r} has no motor datasheet: the energy penalty "
-                           "needs one (nao)")
+                           "needs one (nao, op3, go2)")
     if not isinstance(constrained, bool):
         raise ProblemError(f"constrained must be True or False, got {constrained!r}")
     if constrained and ql.mo.motor_model(spec) is None:

@@ -374,10 +374,12 @@ def _setting(problem: Any) -> dict[str, Any]:
 def _metrics(sim: dict[str, Any]) -> dict[str, Any]:
     """The record's metrics: distance rule and, for a robot with a motor datasheet, the energy
     and gait-quality record (power, CoT, envelope fractions, RMS torque per joint,
-    overheating joints, slip, airborne fraction, foot gap)."""
+    overheating joints, slip, airborne fraction, foot gap) and, for every robot, the actuator
+    envelope (:func:`eaco_jax.gait.quality.envelope`)."""
     out = {k: sim[k] for k in METRIC_KEYS}
-    if "quality" in sim:
-        out["quality"] = sim["quality"]
+    for k in ("quality", "envelope"):
+        if k in sim:
+            out[k] = sim[k]
     return out
 
 
@@ -703,6 +705,10 @@ def summary(record: dict[str, Any]) -> str:
                 f"{record['fitness']:.3f}{energy}")
     lines = [line]
     q = record.get("quality") or {}
+    if record.get("envelope"):
+        from eaco_jax.gait.quality import envelope_table
+
+        lines.append(envelope_table(record["envelope"]))
     if "motors" in q:
         lines.append(motors_line(q))
     if record.get("constraints"):
