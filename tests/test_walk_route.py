@@ -119,6 +119,10 @@ def test_choose_turns_on_the_spot_for_a_large_error_and_steers_a_small_one():
     # hysteresis: a turn goes on until the error is below resume_deg
     assert wr.choose(math.radians(10), wr.LEFT, c)[0] == wr.LEFT
     assert wr.choose(math.radians(5), wr.LEFT, c)[0] == wr.FORWARD
+    # an overshoot hands a turn to the forward gait (steering back), not to the opposite turn
+    mode, steer = wr.choose(math.radians(-30), wr.LEFT, c)
+    assert mode == wr.FORWARD and steer < 0
+    assert wr.choose(math.radians(30), wr.RIGHT, c)[0] == wr.FORWARD
     # the steering is clipped to the walk engine's turn-rate bound
     assert wr.choose(math.radians(12), wr.FORWARD, wr.Controller(steer_gain=5.0))[1] == \
         pytest.approx(0.3)
@@ -161,3 +165,54 @@ def test_library_turning_gaits_step_in_place(nao):
     assert g.turn_left[0] == 0.0 and g.turn_right[0] == 0.0
     assert g.turn_left[wr.TURN] > 0 > g.turn_right[wr.TURN]
     assert g.forward[0] > 0.05
+
+
+# --------------------------------------------------------------------------- end to end
+SMALL = {"name": "small", "bounds": [0.0, -1.5, 5.0, 1.5], "start": [0.3, 0.0],
+         "goal": [4.3, 0.0], "clearance": 0.15,
+         "obstacles": [{"polygon": [[1.8, -0.3], [2.4, -0.3], [2.4, 0.25], [1.8, 0.25]],
+                        "height": 0.5}]}
+
+
+def _small_run(tmp_path, **kw):
+    import json
+
+    from eaco_jax.runs import get
+
+    path = tmp_path / "small.json"
+    path.write_text(json.dumps(SMALL))
+    kind = get("walk")
+    return kind.run(kind.make_settings({"scene": str(path), "out": str(tmp_path / "out"), **kw}))
+
+
+def test_small_scene_planned_then_walked_makes_progress(tmp_path):
+    rec = _small_run(tmp_path, planner="path-eaco", plan_iterations=10, max_time=8.0)
+    route = np.asarray(rec["route"])
+    assert len(route) >= 3  # the obstacle on the straight line bends the route
+    nom = rec["nominal"]
+    assert not nom["fell"] and not nom["contact"]
+    start_gap = float(np.linalg.norm(route[-1] - route[0]))
+    assert nom["goal_distance_m"] < start_gap - 1.2  # 1.2 m closer in 8 s, two turns included
+    assert nom["closest_approach_m"] > 0.0
+    walked = np.asarray(nom["trajectory"])[:, 1:3]
+    assert max(_route_distance(p, route) for p in walked) < 0.3  # it follows the route
+    assert (tmp_path / "out" / "walk.json").is_file() and (tmp_path / "out" / "walk.png").is_file()
+
+
+def _route_distance(p: np.ndarray, route: np.ndarray) -> float:
+    out = np.inf
+    for a, b in zip(route[:-1], route[1:], strict=True):
+        t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+        out = min(out, float(np.linalg.norm(a + t * (b - a) - p)))
+    return out
+
+
+@pytest.mark.slow
+def test_small_scene_walked_to_the_goal_in_randomised_worlds(tmp_path):
+    rec = _small_run(tmp_path, planner="optimal", worlds=4)
+    assert rec["nominal"]["success"]
+    assert rec["nominal"]["reach_time_s"] < 1.6 * rec["planning"]["planned_time_s"]
+    w = rec["worlds"]
+    assert w["n"] == 4 and w["successes"] == sum(x["success"] for x in w["walks"])
+    lo, hi = w["success_rate_ci95"]
+    assert lo <= w["success_rate"] <= hi

@@ -10,7 +10,8 @@ and a path-following controller steers it along the route's polyline, one step c
   ``capture`` of its end.
 * **Gait choice** (:func:`choose`): where the heading error to the target exceeds
   ``turn_deg`` the robot turns on the spot with the library's left or right turning gait (the
-  planner's model of a waypoint), until the error is below ``resume_deg``; otherwise it walks
+  planner's model of a waypoint), until the error is below ``resume_deg`` or has changed sign
+  (an overshoot hands over to the forward gait, never to the opposite turn); otherwise it walks
   with the forward gait whose ``turn_rate`` is the heading error times ``steer_gain``
   (clipped to the walk engine's bound): heading control while walking.
 * **Gait switching**: a new choice is made at the start of each step cycle; the walk engine's
@@ -150,11 +151,16 @@ def choose(error: float, mode: str, ctrl: Controller,
            max_turn_rate: float = float(UPPER[TURN])) -> tuple[str, float]:
     """The gait for the next step cycle from the heading error [rad] (+: target to the left)
     and the current mode: ``(mode, turn_rate)``; ``turn_rate`` is the forward gait's steering
-    (0 when turning on the spot)."""
+    (0 when turning on the spot). A turn that has overshot (the error changed sign) hands over
+    to the forward gait rather than to the opposite turn, so the turns do not chatter while
+    the blend out of a turn runs on."""
     big = math.radians(ctrl.turn_deg)
     small = math.radians(ctrl.resume_deg)
     turning = mode in (LEFT, RIGHT)
-    if abs(error) > big or (turning and abs(error) > small):
+    overshot = (mode == LEFT and error < 0) or (mode == RIGHT and error > 0)
+    if turning and not overshot and abs(error) > small:
+        return mode, 0.0
+    if abs(error) > big and not overshot:
         return (LEFT if error > 0 else RIGHT), 0.0
     steer = max(-max_turn_rate, min(max_turn_rate, ctrl.steer_gain * error))
     return FORWARD, steer
@@ -210,7 +216,8 @@ def sample_walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, n_steps: 
     noise = np.asarray(noise * worlds.noise_std)  # (T, n, nu)
     qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names])
     lo, hi = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
-    qinit = initial_qpos(np.asarray(model.qpos0), wn, qadr, lo, hi, xp=np)
+    stand = sw.start_qpos(spec, model, (0.0, 0.0), 0.0)  # the walk sets the start and heading
+    qinit = initial_qpos(stand, wn, qadr, lo, hi, xp=np)
     out = [WorldInputs(model=models[i], latency=int(wn.latency[i]), noise=noise[:, i],
                        push_start=int(wn.push_start[i]), push_stop=int(wn.push_stop[i]),
                        push_force=np.asarray(wn.push_force[i], np.float64),

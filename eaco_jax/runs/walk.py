@@ -1,0 +1,268 @@
+"""The ``walk`` run: plan a route through a scene, then let the NAO walk it on native MuJoCo.
+
+``eaco walk SCENE`` (a scene JSON file, ``default`` or ``random:SEED``) plans the least walking
+time route with ``--planner`` (the path colony, the path GA or the exact yardstick) and walks it
+with the path-following controller of :mod:`eaco_jax.gait.walk_route` in the scene's MuJoCo
+model (:mod:`eaco_jax.gait.scene_world`): once in the nominal world, or in ``--worlds N``
+randomised worlds of ``--stream`` (success rate with its Clopper-Pearson 95% interval).
+
+The route is planned for the robot that walks it: obstacles grown by ``--clearance`` (the
+NAO's half-width, 0.25 m with its arms and feet, plus a tracking margin) where that exceeds the
+scene's, and with ``--ramps avoid`` every ramp planned around as an obstacle: a ramp is built
+as a wedge whose raised sides are steps the NAO cannot climb, and it can be entered from its
+low end only (``--ramps cross`` plans across ramps as the scene's cost model allows).
+Outputs in ``--out``: ``walk.json`` and ``walk.png`` (top view: planned and walked routes).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from eaco_jax.errors import ConfigError
+from eaco_jax.runs.base import Built, RunKind, check_out, check_settings, setting
+
+PLANNERS = ("path-eaco", "path-ga", "optimal")
+RAMP_MODES = ("avoid", "cross")
+PLAN_ITERATIONS = 150
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkSettings:
+    scene: str = setting("default", "scene JSON file, 'default' or 'random:SEED'",
+                         positional=True, metavar="SCENE")
+    planner: str = setting("path-eaco", "who plans the route: the path colony, the path GA "
+                           "or the exact time-optimal yardstick", choices=PLANNERS)
+    plan_seed: int = setting(0, "seed of the planner")
+    plan_iterations: int = setting(PLAN_ITERATIONS, "planner iterations")
+    clearance: float = setting(0.4, "planning clearance [m] around obstacles (the scene's if "
+                               "larger): the NAO's half-width 0.25 m plus a tracking margin")
+    ramps: str = setting("avoid", "plan around ramps (their raised sides are steps) or "
+                         "across them", choices=RAMP_MODES)
+    worlds: int = setting(0, "walk in this many randomised worlds of --stream (0: the "
+                          "nominal world only)")
+    seed: int = setting(0, "run seed whose world stream the randomised worlds draw from")
+    stream: str = setting("test", "key stream of the worlds: test (nothing is chosen on "
+                          "them), selection or optimisation",
+                          choices=("test", "selection", "optimisation"))
+    max_time: float | None = setting(None, "seconds a walk may last (default: 1.6 x the "
+                                     "planned time + 10 s)")
+    gaits: str = setting("nao", "gait library: a shipped name or a JSON file")
+    lookahead: float = setting(0.6, "controller: target distance ahead on the segment [m]")
+    capture: float = setting(0.3, "controller: a waypoint is reached within this [m]")
+    turn_deg: float = setting(20.0, "controller: turn on the spot above this heading error")
+    resume_deg: float = setting(10.0, "controller: stop turning below this heading error")
+    steer_gain: float = setting(0.6, "controller: forward gait's turn rate per heading error")
+    blend_cycles: float = setting(2.0, "controller: step cycles a gait switch blends over")
+    out: str | None = setting(None, "folder for walk.json and walk.png")
+
+    def __post_init__(self) -> None:
+        check_settings(self, "plan_iterations")
+        if self.worlds < 0:
+            raise ConfigError(f"worlds must be >= 0, got {self.worlds}")
+        if not (math.isfinite(self.clearance) and self.clearance >= 0):
+            raise ConfigError(f"clearance must be a number >= 0, got {self.clearance}")
+        if self.max_time is not None and not (math.isfinite(self.max_time)
+                                              and self.max_time > 0):
+            raise ConfigError(f"max_time must be a number > 0, got {self.max_time}")
+        self.controller()  # one line for bad controller settings
+
+    def controller(self):
+        from eaco_jax.gait.walk_route import Controller
+
+        return Controller(lookahead=self.lookahead, capture=self.capture,
+                          turn_deg=self.turn_deg, resume_deg=self.resume_deg,
+                          steer_gain=self.steer_gain, blend_cycles=self.blend_cycles)
+
+
+def planning_scene(scene: Any, clearance: float, ramps: str) -> Any:
+    """The scene the route is planned on: clearance raised to ``clearance``; with
+    ``ramps="avoid"`` each ramp an obstacle of its footprint."""
+    from eaco_jax.problems.scenes import Obstacle
+
+    out = dataclasses.replace(scene, clearance=max(scene.clearance, clearance))
+    if ramps == "avoid" and scene.ramps:
+        out = dataclasses.replace(out, ramps=(), obstacles=scene.obstacles + tuple(
+            Obstacle(r.polygon, 0.1) for r in scene.ramps))
+    return out
+
+
+def build(s: WalkSettings) -> Built:
+    """The planning problem (the scene for the walking robot) and the planner."""
+    from eaco_jax.problems.scenes import build_problem, load_scene
+    from eaco_jax.strategies import get
+
+    scene = load_scene(s.scene)
+    problem = build_problem(planning_scene(scene, s.clearance, s.ramps))
+    strategy = None if s.planner == "optimal" else get(s.planner)
+    params = None if strategy is None else strategy.default_params(problem)
+    return Built(problem, strategy, params, {"iterations": int(s.plan_iterations)})
+
+
+def plan(s: WalkSettings, built: Built) -> tuple[np.ndarray, float, dict[str, Any]]:
+    """Waypoints ``(k, 2)``, their planned walking time [s] and the planner's record."""
+    problem = built.problem
+    if built.strategy is None:
+        route = np.asarray(problem.coords, np.float64)[list(problem.optimal_route)]
+        return route, float(problem.optimum), {"planner": "optimal"}
+    from eaco_jax.driver.minimize import minimize
+
+    result = minimize(problem, built.strategy, seed=int(s.plan_seed), params=built.params,
+                      **built.budget)
+    best = np.asarray(result.best_solution)
+    cost = float(result.best_cost)
+    return (np.asarray(problem.waypoints(best), np.float64), cost,
+            {"planner": s.planner, "evaluations": int(result.evaluations),
+             "gap_percent": 100.0 * (cost / problem.optimum - 1.0),
+             "seconds": result.seconds})
+
+
+def _success_stats(walks: list[dict[str, Any]], planned: float) -> dict[str, Any]:
+    from eaco_jax.gait.stats import falls_interval
+
+    n = len(walks)
+    ok = [w for w in walks if w["success"]]
+    ratio = [w["reach_time_s"] / planned for w in ok]
+    return {
+        "n": n, "successes": len(ok), "success_rate": len(ok) / max(n, 1),
+        "success_rate_ci95": list(falls_interval(len(ok), n)),
+        "falls": sum(w["fell"] for w in walks), "contacts": sum(w["contact"] for w in walks),
+        "not_reached": sum(not w["reached"] for w in walks),
+        "walked_over_planned_mean": float(np.mean(ratio)) if ratio else None,
+        "walked_over_planned_max": float(np.max(ratio)) if ratio else None,
+        "within_20_percent": sum(r <= 1.2 for r in ratio),
+        "closest_approach_m_min_success": (min(w["closest_approach_m"] for w in ok)
+                                           if ok else None),
+    }
+
+
+def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -> dict[str, Any]:
+    """Plan, then walk; returns the JSON record and writes ``s.out`` if set."""
+    import jax
+
+    from eaco_jax.gait import scene_world as sw
+    from eaco_jax.gait import walk_route as wr
+    from eaco_jax.gait.robot import load_robot
+
+    if checkpointing is not None:
+        raise ConfigError("eaco walk has no checkpoints; run it again")
+    check_out(s.out)
+    built = build(s)
+    scene = built.problem.scene
+    from eaco_jax.problems.scenes import load_scene
+
+    original = load_scene(s.scene)
+    route, planned, plan_info = plan(s, built)
+    spec = load_robot("nao")
+    gaits = wr.load_walk_gaits(s.gaits)
+    ctrl = s.controller()
+    max_time = s.max_time or 1.6 * planned + 10.0
+    heading = wr.start_heading(original, route)
+    model = sw.scene_model(original, spec, start_heading=heading)
+    t0 = time.perf_counter()
+    nominal = wr.walk(original, route, spec, gaits, ctrl, max_time=max_time, model=model)
+    walks: list[dict[str, Any]] = []
+    if s.worlds:
+        steps = int(math.ceil(max_time / spec.control_dt))
+        push_steps = int(math.ceil(planned / spec.control_dt))
+        inputs, _ = wr.sample_walk_worlds(model, spec, int(s.worlds), steps, push_steps,
+                                          seed=int(s.seed), stream=s.stream)
+        for i, world in enumerate(inputs):
+            w = wr.walk(original, route, spec, gaits, ctrl, max_time=max_time, model=model,
+                        world=world, record_every=10)
+            w["world"] = i
+            walks.append(w)
+    seconds = time.perf_counter() - t0
+    record: dict[str, Any] = {
+        "scene": original.name,
+        "scene_source": s.scene,
+        "robot": spec.name,
+        "backend": "native",
+        "planning": {**plan_info, "clearance_m": scene.clearance, "ramps": s.ramps,
+                     "planned_time_s": planned,
+                     "planned_length_m": float(np.sum(np.linalg.norm(np.diff(route, axis=0),
+                                                                     axis=1)))},
+        "route": route.tolist(),
+        "controller": dataclasses.asdict(ctrl),
+        "gaits": s.gaits,
+        "max_time_s": max_time,
+        "nominal": nominal,
+        "settings": {f.name: getattr(s, f.name) for f in dataclasses.fields(s)},
+        "seconds": seconds,
+        "device": f"CPU ({jax.devices('cpu')[0].platform}), native MuJoCo, one thread",
+    }
+    if s.worlds:
+        record["worlds"] = {"stream": s.stream, "seed": int(s.seed),
+                            **_success_stats(walks, planned), "walks": walks}
+    if s.out is not None:
+        from eaco_jax.outputs import write_json
+
+        folder = Path(s.out)
+        record["out"] = str(folder)
+        write_json(folder / "walk.json", record)
+        draw(original, record, folder / "walk.png")
+    return record
+
+
+def draw(scene: Any, record: dict[str, Any], path: str | Path | None = None) -> Any:
+    """Top view: obstacles, ramps, the planned route and the walked trajectories (nominal
+    bold; randomised worlds thin, red where the walk failed)."""
+    from matplotlib.patches import Polygon
+
+    from eaco_jax import plots
+
+    fig, ax = plots.subplots(figsize=(6.0, 6.0))
+    for r in scene.ramps:
+        ax.add_patch(Polygon(np.asarray(r.polygon), closed=True, facecolor="tan", alpha=0.5,
+                             hatch="//", edgecolor="0.4"))
+    for o in scene.obstacles:
+        ax.add_patch(Polygon(np.asarray(o.polygon), closed=True, color="0.55", alpha=0.8))
+    for w in (record.get("worlds") or {}).get("walks", []):
+        xy = np.asarray(w["trajectory"])[:, 1:3]
+        ax.plot(xy[:, 0], xy[:, 1], "-", lw=0.6, alpha=0.5,
+                color="tab:orange" if w["success"] else "tab:red")
+    route = np.asarray(record["route"])
+    ax.plot(route[:, 0], route[:, 1], "--o", color="tab:green", ms=3, lw=1.2,
+            label=f"planned ({record['planning']['planned_time_s']:.1f} s)")
+    nom = record["nominal"]
+    xy = np.asarray(nom["trajectory"])[:, 1:3]
+    ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:blue", lw=1.8,
+            label=f"walked, nominal ({nom['walked_time_s']:.1f} s, "
+                  f"{'success' if nom['success'] else 'failed'})")
+    if nom["fell"] or nom["contact"]:
+        ax.plot(*xy[-1], "x", color="tab:red", ms=10)
+    ax.plot(*route[0], "s", color="k", ms=8, label="start")
+    ax.plot(*route[-1], "*", color="tab:red", ms=12, label="goal")
+    title = f"{record['scene']}: walk the planned route"
+    if "worlds" in record:
+        wd = record["worlds"]
+        title += f" ({wd['successes']}/{wd['n']} worlds succeed)"
+    ax.set_title(title, fontsize=10)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.legend(loc="lower right", fontsize=7)
+    return plots.save_figure(fig, path) if path is not None else fig
+
+
+def summary(record: dict[str, Any]) -> str:
+    nom = record["nominal"]
+    p = record["planning"]
+    text = (f"{record['scene']}: planned {p['planned_time_s']:.1f} s over "
+            f"{p['planned_length_m']:.2f} m ({p['planner']}); nominal walk "
+            f"{'succeeded' if nom['success'] else 'failed'} in {nom['walked_time_s']:.1f} s "
+            f"(closest approach {nom['closest_approach_m']:.3f} m"
+            f"{', fell' if nom['fell'] else ''}{', contact' if nom['contact'] else ''})")
+    if "worlds" in record:
+        w = record["worlds"]
+        lo, hi = w["success_rate_ci95"]
+        text += (f"; {w['successes']}/{w['n']} randomised worlds succeed (95% CI "
+                 f"{100 * lo:.0f}-{100 * hi:.0f}%)")
+    return text
+
+
+KIND = RunKind("walk", WalkSettings, build, run, None, summary, resumable=False)
