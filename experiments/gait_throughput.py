@@ -20,6 +20,12 @@ For every backend and batch (= colony size) this measures, after compilation, th
   (random gaits' walk-engine targets, precomputed): the physics of a walking colony, which
   costs more than a standing one because MJX's solver iterates until every ant converges.
 
+Every rate is physics steps x ants x worlds (``--worlds`` R randomised worlds per ant, the robust
+fitness's) / wall seconds, compilation excluded and reported apart (``compile s``). The raw loops
+step ants x worlds copies. ``--robot`` takes several robots (``nao,op3,go2``: shipped names or
+spec paths) for MJX steps/s per robot side by side; ``--impl`` picks MJX's implementation
+(``jax``, ``warp`` on CUDA: the raw loops are then not timed, ``auto``).
+
 ``ratio = colony / raw`` is what the optimiser (controller, fitness, colony) costs; the target is
 >= 0.9. ``ratio wlk = colony / raw walking`` separates the optimiser's own cost from the harder
 physics of walking robots. ``eval/raw`` shows how much of that is the walk engine rather than
@@ -33,7 +39,13 @@ GPU (through ``device``)::
 
     python experiments/gait_throughput.py --batches 1024,4096,16384 --backend mjx --steps 1000
 
-Writes ``experiments/results/gait_throughput_<device>.json``.
+Per robot, the robust search's shape, on a GPU with MuJoCo Warp (any folder, an installed
+eaco_jax; the script needs only ``experiments/common.py`` beside it)::
+
+    python experiments/gait_throughput.py --robot nao,op3,go2 --backend mjx --impl warp \
+        --batches 2048 --worlds 8 --steps 500 --no-split --out $OUT/gait_throughput_robots.json
+
+Writes ``experiments/results/gait_throughput_<device>.json`` unless ``--out`` names a file.
 """
 
 from __future__ import annotations
@@ -45,6 +57,7 @@ import os
 import platform
 import re
 import statistics
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -52,25 +65,41 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import timed
+from common import device_info, timed
 
 import eaco_jax as ea
+from eaco_jax.errors import ProblemError
 from eaco_jax.gait.robot import load_robot
 from eaco_jax.gait.rollout_mjx import mjx_model
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
+from eaco_jax.gait.worlds import RobustConfig
 from eaco_jax.problems.gait import make_gait_problem
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
+def gait_problem(robot: str, backend: str, control_steps: int, worlds: int = 1,
+                 impl: str = "auto"):
+    """The gait problem timed: ``control_steps`` long, R = ``worlds`` randomised worlds per ant
+    (the robust fitness; seed 0 of the optimisation stream) when ``worlds`` > 1."""
+    spec = load_robot(robot)
+    robust = RobustConfig(R=int(worlds), seed=0) if worlds > 1 else None
+    kw = {"impl": impl} if backend == "mjx" else {}
+    problem = make_gait_problem(robot, backend=backend, horizon=control_steps * spec.control_dt,
+                                robust=robust, **kw)
+    assert problem.n_steps == control_steps
+    return problem
+
+
 def colony_rate(robot: str, backend: str, batch: int, control_steps: int, iterations: int,
-                repeats: int, seed: int = 0) -> dict[str, Any]:
-    """Physics steps/s of the jitted colony loop (ask, batched rollout + fitness, tell)."""
+                repeats: int, seed: int = 0, worlds: int = 1,
+                impl: str = "auto") -> dict[str, Any]:
+    """Physics steps/s of the jitted colony loop (ask, batched rollout + fitness, tell):
+    physics steps x ants x worlds x iterations / wall seconds."""
     spec = load_robot(robot)
     k = substeps(spec, native_model(spec, 0.0, "fast"))
-    problem = make_gait_problem(robot, backend=backend, horizon=control_steps * spec.control_dt)
-    assert problem.n_steps == control_steps
+    problem = gait_problem(robot, backend, control_steps, worlds, impl)
     strategy = ContinuousEACO(num_ants=batch, archive_size=max(2, batch // 2), refine_ants=0,
                               repair_steps=0)
 
@@ -85,24 +114,25 @@ def colony_rate(robot: str, backend: str, batch: int, control_steps: int, iterat
     best = results[-1] if results else first
     steps = control_steps * k
     return {"compile_s": compile_s, "wall_s": wall, "physics_steps": steps,
-            "steps_per_s": steps * batch * iterations / wall,
-            "best_fitness": -float(np.asarray(best.best_cost))}
+            "steps_per_s": steps * batch * worlds * iterations / wall,
+            "best_fitness": -float(np.asarray(best.best_cost)), "impl": problem.impl}
 
 
 def evaluate_rate(robot: str, backend: str, batch: int, control_steps: int, repeats: int,
-                  seed: int = 0) -> dict[str, Any]:
+                  seed: int = 0, worlds: int = 1, impl: str = "auto") -> dict[str, Any]:
     """Physics steps/s of ``GaitProblem.evaluate`` alone (walk engine + physics + fitness, no
     colony): separates what the controller costs from what the colony update costs."""
     spec = load_robot(robot)
     k = substeps(spec, native_model(spec, 0.0, "fast"))
-    problem = make_gait_problem(robot, backend=backend, horizon=control_steps * spec.control_dt)
+    problem = gait_problem(robot, backend, control_steps, worlds, impl)
     x = random_gaits(problem, batch, seed)
     t0 = time.perf_counter()
     fn = jax.jit(lambda a: problem.evaluate(a).f).lower(x).compile()
     compile_s = time.perf_counter() - t0
     _, wall = timed(lambda: fn(x), repeats)
     steps = control_steps * k
-    return {"compile_s": compile_s, "wall_s": wall, "steps_per_s": steps * batch / wall}
+    return {"compile_s": compile_s, "wall_s": wall,
+            "steps_per_s": steps * batch * worlds / wall}
 
 
 def random_gaits(problem, batch: int, seed: int = 0) -> jax.Array:
@@ -179,10 +209,18 @@ def _opt(value: float | None, fmt: str, width: int) -> str:
     return f"{value:{width}{fmt}}" if value is not None else f"{'-':>{width}s}"
 
 
+HEADER = (f"{'robot':8s} {'backend':9s} {'batch':>6s} {'R':>3s} {'colony steps/s':>15s} "
+          f"{'evaluate steps/s':>17s} {'raw steps/s':>12s} {'raw walking/s':>14s} "
+          f"{'ratio':>6s} {'ratio wlk':>9s} {'eval/raw':>8s} {'compile s':>9s}")
+
+
 def fmt_row(r: dict[str, Any]) -> str:
-    return (f"{r['backend']:7s} {r['batch']:6d} {r['colony_steps_per_s']:15,.0f} "
-            f"{_opt(r['evaluate_steps_per_s'], ',.0f', 17)} {r['raw_steps_per_s']:12,.0f} "
-            f"{_opt(r['raw_walking_steps_per_s'], ',.0f', 14)} {r['ratio']:6.2f} "
+    backend = r["backend"] if r["backend"] != "mjx" else f"mjx-{r['impl']}"
+    return (f"{r['robot'][:8]:8s} {backend:9s} {r['batch']:6d} {r['worlds']:3d} "
+            f"{r['colony_steps_per_s']:15,.0f} "
+            f"{_opt(r['evaluate_steps_per_s'], ',.0f', 17)} "
+            f"{_opt(r['raw_steps_per_s'], ',.0f', 12)} "
+            f"{_opt(r['raw_walking_steps_per_s'], ',.0f', 14)} {_opt(r['ratio'], '.2f', 6)} "
             f"{_opt(r['ratio_walking'], '.2f', 9)} {_opt(r['evaluate_ratio'], '.2f', 8)} "
             f"{r['colony_compile_s']:9.1f}")
 
@@ -193,91 +231,133 @@ def device_label() -> str:
     return re.sub(r"[^a-z0-9]+", "_", str(kind).lower()).strip("_")
 
 
+def ratio(a: float | None, b: float | None) -> float | None:
+    return None if a is None or b is None else a / b
+
+
+def measure(robot: str, backend: str, batch: int, args: argparse.Namespace) -> dict[str, Any]:
+    """One row: colony (and evaluate, raw, raw walking) steps/s of ``robot`` at ``batch`` ants
+    x ``args.worlds`` worlds, compile seconds apart."""
+    spec = load_robot(robot)
+    k = substeps(spec, native_model(spec, 0.0, "fast"))
+    control_steps = max(1, math.ceil(args.steps / k))
+    steps = control_steps * k
+    copies = batch * args.worlds
+    col = colony_rate(robot, backend, batch, control_steps, args.iterations, args.repeats,
+                      worlds=args.worlds, impl=args.impl)
+    impl = col["impl"] if backend == "mjx" else "c"
+    raw = walk = None
+    if args.no_raw:
+        pass
+    elif backend == "mjx" and impl == "jax":
+        raw = raw_mjx_rate(robot, copies, control_steps, args.repeats)
+        walk = raw_mjx_rate(robot, copies, control_steps, args.repeats, walking=True)
+    elif backend == "native":
+        raw = raw_native_rate(robot, copies, steps, args.repeats)
+    ev = None if args.no_split else evaluate_rate(
+        robot, backend, batch, control_steps, args.repeats, worlds=args.worlds, impl=args.impl)
+    rate = lambda d: None if d is None else d["steps_per_s"]  # noqa: E731
+    return {"robot": spec.name, "backend": backend, "impl": impl, "batch": batch,
+            "worlds": args.worlds, "physics_steps": steps, "control_steps": control_steps,
+            "substeps": k, "timestep_s": spec.control_dt / k,
+            "colony_steps_per_s": col["steps_per_s"], "raw_steps_per_s": rate(raw),
+            "ratio": ratio(col["steps_per_s"], rate(raw)),
+            "raw_walking_steps_per_s": rate(walk),
+            "ratio_walking": ratio(col["steps_per_s"], rate(walk)),
+            "evaluate_steps_per_s": rate(ev), "evaluate_ratio": ratio(rate(ev), rate(raw)),
+            "colony_wall_s": col["wall_s"], "raw_wall_s": None if raw is None else raw["wall_s"],
+            "colony_compile_s": col["compile_s"],
+            "evaluate_compile_s": None if ev is None else ev["compile_s"],
+            "raw_compile_s": None if raw is None else raw["compile_s"]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robot", default="nao")
+    ap.add_argument("--robot", default="nao",
+                    help="robot(s), comma separated: shipped names (nao, op3, go2) or spec paths")
     ap.add_argument("--batches", default="32,64,128", help="colony sizes, comma separated")
     ap.add_argument("--backend", default="mjx,native", help="mjx, native or both")
+    ap.add_argument("--impl", default="jax", choices=("jax", "warp", "auto"),
+                    help="MJX implementation (warp: CUDA only; the raw loops are not timed)")
+    ap.add_argument("--worlds", type=int, default=1,
+                    help="randomised worlds per ant (the robust fitness's R); 1 = nominal world")
     ap.add_argument("--steps", type=int, default=250,
                     help="physics steps per rollout (rounded up to whole control steps)")
     ap.add_argument("--iterations", type=int, default=1, help="colony iterations per call")
     ap.add_argument("--repeats", type=int, default=3, help="timed calls (median)")
     ap.add_argument("--no-split", action="store_true",
                     help="skip timing GaitProblem.evaluate alone (one compile less per batch)")
+    ap.add_argument("--no-raw", action="store_true",
+                    help="skip the raw physics loops (two compiles less per MJX batch)")
     ap.add_argument("--out", default=None, help="JSON path (default results/..._<device>.json)")
     args = ap.parse_args()
 
+    robots = [r for r in args.robot.split(",") if r]
     batches = [int(b) for b in args.batches.split(",") if b]
     backends = [b for b in args.backend.split(",") if b]
     for b in backends:
         if b not in ("mjx", "native"):
             raise SystemExit(f"error: unknown backend {b!r}; use mjx and/or native")
+    if args.worlds < 1 or not batches or min(batches) < 1:
+        raise SystemExit("error: --worlds and every --batches entry must be positive integers")
+    try:
+        for r in robots:
+            load_robot(r)
+    except ProblemError as err:
+        raise SystemExit(f"error: {err}") from None
     if "native" in backends and jax.default_backend() != "cpu":
         print("note: native runs MuJoCo's C engine on this host's CPU threads")
-    spec = load_robot(args.robot)
-    k = substeps(spec, native_model(spec, 0.0, "fast"))
-    control_steps = max(1, math.ceil(args.steps / k))
-    steps = control_steps * k
     device = device_label()
-    print(f"robot {args.robot}, device {jax.devices()[0]}, {steps} physics steps per rollout "
-          f"({control_steps} control steps x {k}), {args.iterations} iteration(s) per call, "
-          f"median of {args.repeats}", flush=True)
+    print(f"robots {', '.join(robots)}, device {jax.devices()[0]}, {args.steps} physics steps "
+          f"per rollout (rounded up to whole control steps), {args.worlds} world(s) per ant, "
+          f"{args.iterations} iteration(s) per call, median of {args.repeats}; steps/s = "
+          "physics steps x ants x worlds / wall seconds, compilation apart", flush=True)
 
     rows = []
-    header = (f"{'backend':7s} {'batch':>6s} {'colony steps/s':>15s} {'evaluate steps/s':>17s} "
-              f"{'raw steps/s':>12s} {'raw walking/s':>14s} {'ratio':>6s} {'ratio wlk':>9s} "
-              f"{'eval/raw':>8s} {'compile s':>9s}")
-    print(header, flush=True)
-    for backend in backends:
-        for batch in batches:
-            col = colony_rate(args.robot, backend, batch, control_steps, args.iterations,
-                              args.repeats)
-            if backend == "mjx":
-                raw = raw_mjx_rate(args.robot, batch, control_steps, args.repeats)
-                walk = raw_mjx_rate(args.robot, batch, control_steps, args.repeats, walking=True)
-            else:
-                raw, walk = raw_native_rate(args.robot, batch, steps, args.repeats), None
-            ev = None if args.no_split else evaluate_rate(
-                args.robot, backend, batch, control_steps, args.repeats)
-            row = {"backend": backend, "batch": batch, "physics_steps": steps,
-                   "colony_steps_per_s": col["steps_per_s"], "raw_steps_per_s": raw["steps_per_s"],
-                   "ratio": col["steps_per_s"] / raw["steps_per_s"],
-                   "raw_walking_steps_per_s": None if walk is None else walk["steps_per_s"],
-                   "ratio_walking": None if walk is None
-                   else col["steps_per_s"] / walk["steps_per_s"],
-                   "evaluate_steps_per_s": None if ev is None else ev["steps_per_s"],
-                   "evaluate_ratio": None if ev is None else ev["steps_per_s"] / raw["steps_per_s"],
-                   "colony_wall_s": col["wall_s"], "raw_wall_s": raw["wall_s"],
-                   "colony_compile_s": col["compile_s"], "raw_compile_s": raw["compile_s"]}
-            rows.append(row)
-            print(fmt_row(row), flush=True)
+    print(HEADER, flush=True)
+    for robot in robots:
+        for backend in backends:
+            for batch in batches:
+                row = measure(robot, backend, batch, args)
+                rows.append(row)
+                print(fmt_row(row), flush=True)
 
-    print("\n" + header)
+    print("\n" + HEADER)
     for r in rows:
         print(fmt_row(r))
     native_vs_mjx = []
-    by = {(r["backend"], r["batch"]): r for r in rows}
-    for batch in batches:
-        if ("mjx", batch) in by and ("native", batch) in by:
-            n, m = by[("native", batch)], by[("mjx", batch)]
-            native_vs_mjx.append({
-                "batch": batch,
-                "raw": n["raw_steps_per_s"] / m["raw_steps_per_s"],
-                "colony": n["colony_steps_per_s"] / m["colony_steps_per_s"]})
-            print(f"native / mjx at batch {batch}: raw {native_vs_mjx[-1]['raw']:.1f}x, "
-                  f"colony {native_vs_mjx[-1]['colony']:.1f}x")
+    by = {(r["robot"], r["backend"], r["batch"]): r for r in rows}
+    for robot in {r["robot"] for r in rows}:
+        for batch in batches:
+            n, m = by.get((robot, "native", batch)), by.get((robot, "mjx", batch))
+            if n is None or m is None:
+                continue
+            native_vs_mjx.append({"robot": robot, "batch": batch,
+                                  "raw": ratio(n["raw_steps_per_s"], m["raw_steps_per_s"]),
+                                  "colony": n["colony_steps_per_s"] / m["colony_steps_per_s"]})
+            print(f"{robot} native / mjx at batch {batch}: colony "
+                  f"{native_vs_mjx[-1]['colony']:.1f}x")
     record = {
-        "robot": args.robot, "device": str(jax.devices()[0]), "device_label": device,
-        "jax": jax.__version__, "host": platform.node(), "cpu_count": os.cpu_count(),
-        "physics_steps": steps, "control_steps": control_steps, "substeps": k,
-        "iterations_per_call": args.iterations, "repeats": args.repeats,
-        "rows": rows, "native_vs_mjx": native_vs_mjx,
+        "robot": args.robot, "robots": robots, "device": str(jax.devices()[0]),
+        "device_label": device, "info": device_info(), "jax": jax.__version__,
+        "mujoco": mujoco_version(), "eaco_jax": ea.__version__,
+        "host": platform.node(), "cpu_count": os.cpu_count(),
+        "command": "python experiments/gait_throughput.py " + " ".join(sys.argv[1:]),
+        "date": time.strftime("%Y-%m-%d"), "worlds": args.worlds, "impl": args.impl,
+        "steps_requested": args.steps, "iterations_per_call": args.iterations,
+        "repeats": args.repeats, "rows": rows, "native_vs_mjx": native_vs_mjx,
         "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,
     }
     out = Path(args.out) if args.out else RESULTS / f"gait_throughput_{device}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(record, indent=2) + "\n")
     print(f"wrote {out}")
+
+
+def mujoco_version() -> str:
+    import mujoco
+
+    return mujoco.__version__
 
 
 if __name__ == "__main__":
