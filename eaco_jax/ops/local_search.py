@@ -34,6 +34,7 @@ little.
 from __future__ import annotations
 
 from functools import partial
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -44,6 +45,15 @@ Array = jax.Array
 
 #: Or-opt moves segments of 1..OR_OPT_MAX cities
 OR_OPT_MAX = 3
+
+
+def as_distances(dist: Any) -> Any:
+    """``dist`` as the searches read it: a float32 (n, n) array, or unchanged when it computes
+    its entries when indexed (``on_the_fly``: the sparse TSP's coordinate distances, indexed
+    ``dist[a, b]`` like a matrix, so every search runs on it unchanged)."""
+    if getattr(dist, "on_the_fly", False):
+        return dist
+    return jnp.asarray(dist, jnp.float32)
 
 
 def _check(tours: Array, dist: Array, neighbors: Array | None, or_opt: bool = False) -> None:
@@ -66,6 +76,9 @@ def _candidates(dist: Array, neighbors: Array | None) -> Array:
     """The candidate lists, or every other city (sorted by distance) when None."""
     if neighbors is not None:
         return jnp.asarray(neighbors, jnp.int32)
+    if getattr(dist, "on_the_fly", False):
+        raise ConfigError("a search on distances computed from coordinates needs candidate "
+                          "lists (neighbors)")
     n = dist.shape[0]
     d = jnp.where(jnp.eye(n, dtype=bool), jnp.inf, dist)
     return jnp.argsort(d, axis=1)[:, : n - 1].astype(jnp.int32)
@@ -349,7 +362,7 @@ def two_opt(
     if acceptance not in ACCEPTANCES:
         raise ConfigError(f"acceptance={acceptance!r} is not one of {ACCEPTANCES}")
     tours = jnp.asarray(tours, jnp.int32)
-    dist = jnp.asarray(dist, jnp.float32)
+    dist = as_distances(dist)
     _check(tours, dist, neighbors, or_opt)
     cand = _candidates(dist, neighbors)
     cand_d = dist[jnp.arange(dist.shape[0])[:, None], cand]
@@ -619,7 +632,7 @@ def dlb_local_search(
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
     tours = jnp.asarray(tours, jnp.int32)
-    dist = jnp.asarray(dist, jnp.float32)
+    dist = as_distances(dist)
     _check(tours, dist, neighbors, or_opt)
     m, n = tours.shape
     cand = _candidates(dist, neighbors)
@@ -632,10 +645,13 @@ def dlb_local_search(
             keys = jax.random.split(key, m)
             order = jax.vmap(lambda kk: jax.random.permutation(kk, n))(keys).astype(jnp.int32)
     order = jnp.asarray(order, jnp.int32)
-    if resolve_dlb_impl(impl) == "native":
+    native_mode = _native_mode(dist)
+    if resolve_dlb_impl(impl) == "native" and native_mode is not None:
         from eaco_jax.ops.local_search_native import dlb_native
 
-        out, moves = dlb_native(tours, order, dist, cand, cand_d, mm, or_opt, full_check)
+        table = dist.coords if native_mode else dist
+        out, moves = dlb_native(tours, order, table, cand, cand_d, mm, or_opt, full_check,
+                                native_mode)
         return (out, moves) if return_moves else out
 
     def one(t, o):
@@ -643,6 +659,16 @@ def dlb_local_search(
 
     out, moves, _ = jax.vmap(one)(tours, order)
     return (out, moves) if return_moves else out
+
+
+def _native_mode(dist: Any) -> int | None:
+    """The native search's distance mode for ``dist`` (``local_search_native.MODES``), None
+    where it has none (coordinates in float32: the XLA search runs them)."""
+    if not getattr(dist, "on_the_fly", False):
+        return 0
+    if getattr(dist, "exact", False) and dist.metric in ("EUC_2D", "CEIL_2D", "ATT"):
+        return {"EUC_2D": 1, "CEIL_2D": 2, "ATT": 3}[dist.metric]
+    return None
 
 
 def best_k(tours: Array, lengths: Array, k: int | None, improve) -> Array:

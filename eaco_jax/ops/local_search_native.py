@@ -68,9 +68,39 @@ def _or_move(tour, pos, base, span, t, rev, seg):  # pragma: no cover - numba
         pos[c] = p
 
 
+#: how the native search reads a distance (``dist`` is a matrix, or int32 coordinates whose
+#: TSPLIB distance it computes exactly: the values of the sparse path's ``CoordDistances``)
+MODES = {"matrix": 0, "EUC_2D": 1, "CEIL_2D": 2, "ATT": 3}
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _d(dist, mode, i, j):  # pragma: no cover - numba
+    """float32 distance of cities ``i`` and ``j`` (:data:`MODES`)."""
+    if mode == 0:
+        return np.float32(dist[i, j])
+    dx = np.int64(dist[i, 0]) - np.int64(dist[j, 0])
+    dy = np.int64(dist[i, 1]) - np.int64(dist[j, 1])
+    s = dx * dx + dy * dy
+    if mode == 1:  # nint(sqrt(s)) = t  iff  t^2 - t + 1 <= s <= t^2 + t
+        t = np.int64(np.floor(np.sqrt(np.float64(s)) + 0.5))
+        while t > 0 and s < t * t - t + 1:
+            t -= 1
+        while s > t * t + t:
+            t += 1
+        return np.float32(t)
+    scale = 1 if mode == 2 else 10  # ceil(sqrt(s / scale)): CEIL_2D, ATT
+    t = np.int64(np.ceil(np.sqrt(np.float64(s) / scale)))
+    while t > 0 and scale * (t - 1) * (t - 1) >= s:
+        t -= 1
+    while scale * t * t < s:
+        t += 1
+    return np.float32(t)
+
+
 @numba.njit(cache=True, nogil=True)
 def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, lens, back,
-             pos, rank, active, seg, ends, pc2, sc2, pr2, ga, gb, grem):  # pragma: no cover
+             pos, rank, active, seg, ends, pc2, sc2, pr2, ga, gb, grem,
+             mode=0):  # pragma: no cover
     """One tour, in place: ``local_search._dlb_one`` with ``block=1``. Returns the moves."""
     n = tour.shape[0]
     k = cand.shape[1]
@@ -94,7 +124,7 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
         s1, p1 = tour[(i1 + 1) % n], tour[(i1 - 1) % n]
         kind = 0
         # 2-opt, successor side: reverse s1 .. c2
-        rad = dist[c1, s1]
+        rad = _d(dist, mode, c1, s1)
         for h in range(k):
             d12 = cand_d[c1, h]
             if not d12 < rad:
@@ -103,12 +133,12 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
             if c2 == p1:
                 continue
             s2 = tour[(pos[c2] + 1) % n]
-            if rad + dist[c2, s2] - d12 - dist[s1, s2] > 0:
+            if rad + _d(dist, mode, c2, s2) - d12 - _d(dist, mode, s1, s2) > 0:
                 kind, a, b = 1, pos[s1], pos[c2]
                 ends[0], ends[1], ends[2], ends[3] = c1, s1, c2, s2
                 break
         if kind == 0:  # predecessor side: reverse c1 .. p2
-            rad = dist[p1, c1]
+            rad = _d(dist, mode, p1, c1)
             for h in range(k):
                 d12 = cand_d[c1, h]
                 if not d12 < rad:
@@ -117,7 +147,7 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
                 if c2 == s1:
                     continue
                 p2 = tour[(pos[c2] - 1) % n]
-                if rad + dist[p2, c2] - d12 - dist[p1, p2] > 0:
+                if rad + _d(dist, mode, p2, c2) - d12 - _d(dist, mode, p1, p2) > 0:
                     kind, a, b = 1, i1, pos[p2]
                     ends[0], ends[1], ends[2], ends[3] = c1, p1, c2, p2
                     break
@@ -134,7 +164,9 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
                 ln = lens[si]
                 sa = (i1 - ln + 1) % n if back[si] else i1
                 pp, ss = tour[(sa - 1) % n], tour[(sa + ln) % n]
-                grem[si] = dist[pp, tour[sa]] + dist[tour[(sa + ln - 1) % n], ss] - dist[pp, ss]
+                last = tour[(sa + ln - 1) % n]
+                grem[si] = (_d(dist, mode, pp, tour[sa]) + _d(dist, mode, last, ss)
+                            - _d(dist, mode, pp, ss))
                 g_max = max(g_max, grem[si])
             for h in range(k):  # per candidate, once, where some segment may use it
                 if not cand_d[c1, h] < g_max:
@@ -143,8 +175,8 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
                 pc2[h] = pos[c2]
                 sc2[h] = tour[(pos[c2] + 1) % n]
                 pr2[h] = tour[(pos[c2] - 1) % n]
-                ga[h] = dist[c2, sc2[h]] - cand_d[c1, h]
-                gb[h] = dist[pr2[h], c2] - cand_d[c1, h]
+                ga[h] = _d(dist, mode, c2, sc2[h]) - cand_d[c1, h]
+                gb[h] = _d(dist, mode, pr2[h], c2) - cand_d[c1, h]
             best = neg_inf
             b_si, b_h, b_side = 0, 0, 0
             for si in range(n_seg):
@@ -163,12 +195,12 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
                     # which changes no result (only a positive best is applied)
                     bar = best if best > 0 else np.float32(0)
                     if q != n - 1 and g_rem + ga[h] > bar:
-                        g = g_rem + (ga[h] - dist[other, sc2[h]])
+                        g = g_rem + (ga[h] - _d(dist, mode, other, sc2[h]))
                         if g > best:
                             best, b_si, b_h, b_side = g, si, h, 0
                     bar = best if best > 0 else np.float32(0)
                     if q != ln and g_rem + gb[h] > bar:
-                        g = g_rem + (gb[h] - dist[pr2[h], other])
+                        g = g_rem + (gb[h] - _d(dist, mode, pr2[h], other))
                         if g > best:
                             best, b_si, b_h, b_side = g, si, h, 1
             if best > 0:
@@ -203,7 +235,7 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
 
 
 @numba.njit(cache=True, nogil=True)
-def dlb_batch(tours, orders, dist, cand, cand_d, max_moves, or_opt, full_check):
+def dlb_batch(tours, orders, dist, cand, cand_d, max_moves, or_opt, full_check, mode=0):
     """Every tour of ``tours`` ``(m, n)`` (copied): (improved tours, moves per tour)."""
     m, n = tours.shape
     out = tours.copy()
@@ -222,7 +254,7 @@ def dlb_batch(tours, orders, dist, cand, cand_d, max_moves, or_opt, full_check):
     for i in range(m):
         moves[i] = _dlb_one(out[i], orders[i], dist, cand, cand_d, max_moves, or_opt,
                             full_check, lens, back, pos, rank, active, seg, ends, pc2, sc2,
-                            pr2, ga, gb, grem)
+                            pr2, ga, gb, grem, mode)
     return out, moves
 
 
@@ -234,7 +266,7 @@ def _readonly(x) -> np.ndarray:
 
 
 def _host(ctx, out, tours, orders, dist, cand, cand_d, *, max_moves: int, or_opt: bool,
-          full_check: bool) -> None:
+          full_check: bool, mode: int = 0) -> None:
     """The buffer callback: reads XLA's buffers in place (no device transfer, which on a
     one-thread CPU client would wait for the very computation that waits for this call) and
     writes the results into ``out``. Any leading batch dims (``vmap`` adds them, size 1
@@ -247,11 +279,11 @@ def _host(ctx, out, tours, orders, dist, cand, cand_d, *, max_moves: int, or_opt
         def at(x, idx=idx):  # this batch element of x (index 0 along its size-1 dims)
             return x[tuple(i if s > 1 else 0 for i, s in zip(idx, x.shape, strict=False))]
         out_tours[idx], out_moves[idx] = dlb_batch(*(at(x) for x in args), max_moves, or_opt,
-                                                   full_check)
+                                                   full_check, mode)
 
 
-@lru_cache(maxsize=1)
-def warm_up() -> None:
+@lru_cache(maxsize=2)
+def warm_up(coords: bool = False) -> None:
     """Compile (or load from numba's cache) the native search now, while JAX traces the step,
     so that its compile time counts as compile time and not as search time."""
     n = 8
@@ -261,17 +293,21 @@ def warm_up() -> None:
     cand_d = np.take_along_axis(dist, cand, axis=1)
     tours = np.array([[0, 4, 1, 5, 2, 6, 3, 7]], np.int32)
     args = [_readonly(x) for x in (tours, np.arange(n, dtype=np.int32)[None], dist, cand, cand_d)]
-    dlb_batch(*args, 4 * n, True, True)
+    if coords:
+        args[2] = _readonly(np.stack([np.arange(n), np.zeros(n)], 1).astype(np.int32))
+    dlb_batch(*args, 4 * n, True, True, 1 if coords else 0)
 
 
-@partial(jax.jit, static_argnames=("max_moves", "or_opt", "full_check"))
+@partial(jax.jit, static_argnames=("max_moves", "or_opt", "full_check", "mode"))
 def dlb_native(tours: Array, orders: Array, dist: Array, cand: Array, cand_d: Array,
-               max_moves: int, or_opt: bool, full_check: bool) -> tuple[Array, Array]:
-    """``local_search._dlb_one`` over tours ``(m, n)`` as one host call: (tours, moves)."""
-    warm_up()
+               max_moves: int, or_opt: bool, full_check: bool,
+               mode: int = 0) -> tuple[Array, Array]:
+    """``local_search._dlb_one`` over tours ``(m, n)`` as one host call: (tours, moves).
+    ``dist``: the (n, n) matrix (``mode`` 0), or (n, 2) int32 coordinates (:data:`MODES`)."""
+    warm_up(mode != 0)
     shapes = (jax.ShapeDtypeStruct(tours.shape, jnp.int32),
               jax.ShapeDtypeStruct(tours.shape[:-1], jnp.int32))
     host = partial(_host, max_moves=int(max_moves), or_opt=bool(or_opt),
-                   full_check=bool(full_check))
+                   full_check=bool(full_check), mode=int(mode))
     call = buffer_callback(host, shapes, vmap_method="expand_dims")
     return tuple(call(tours, orders, dist, cand, cand_d))

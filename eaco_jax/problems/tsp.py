@@ -277,10 +277,15 @@ def euclidean_distances(coords: Any) -> np.ndarray:
     return np.sqrt((diff**2).sum(-1))
 
 
-def load_tsplib(name_or_path: str | Path, neighbors: int = DEFAULT_NEIGHBORS) -> TSP:
+def load_tsplib(name_or_path: str | Path, neighbors: int | None = None,
+                sparse: bool | None = None) -> Any:
     """A bundled instance by bare name (``"eil51"``) or any TSPLIB ``.tsp`` file by path.
 
     The optimum comes from the bundled ``optima.csv`` when the instance name matches.
+    ``sparse``: a :class:`~eaco_jax.problems.tsp_sparse.SparseTSP` (no distance matrix,
+    memory O(n k)) when True; None (default) from ``SPARSE_MIN_CITIES`` cities on for the
+    coordinate metrics it computes (EUC_2D, CEIL_2D, ATT), else a dense :class:`TSP`.
+    ``neighbors``: candidate-list length (default 20 dense, 16 sparse).
     """
     text = str(name_or_path)
     bundled = DATA_DIR / f"{text}.tsp"
@@ -297,6 +302,22 @@ def load_tsplib(name_or_path: str | Path, neighbors: int = DEFAULT_NEIGHBORS) ->
     name = inst.name if inst.name else path.stem
     optima = bundled_optima()
     optimum = optima.get(name, optima.get(path.stem))
+    from eaco_jax.problems import tsp_sparse
+    from eaco_jax.problems.tsplib import check_dimension
+
+    can_sparse = inst.edge_weight_type in tsp_sparse.SPARSE_METRICS
+    if sparse is None:
+        sparse = can_sparse and inst.dimension >= tsp_sparse.SPARSE_MIN_CITIES
+    if sparse:
+        if not can_sparse:
+            raise ProblemError(
+                f"{path}: EDGE_WEIGHT_TYPE {inst.edge_weight_type} has no sparse path; use "
+                f"one of {', '.join(tsp_sparse.SPARSE_METRICS[:3])} or the dense path")
+        return tsp_sparse.SparseTSP.from_coords(
+            inst.coords, name=name, metric=inst.edge_weight_type, optimum=optimum,
+            neighbors=tsp_sparse.SPARSE_NEIGHBORS if neighbors is None else neighbors)
+    check_dimension(inst.dimension, str(path))
+    neighbors = DEFAULT_NEIGHBORS if neighbors is None else neighbors
     return TSP.from_distance_matrix(
         distance_matrix(inst), name=name, neighbors=neighbors, optimum=optimum,
         coords=inst.coords if inst.coords is not None and len(inst.coords) else None,

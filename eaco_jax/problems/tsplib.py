@@ -91,12 +91,19 @@ def memory_bytes() -> int:
         return 2**50
 
 
-def check_dimension(n: int, where: str) -> None:
-    """Refuse a city count whose distance matrices (float64 + float32, n x n) do not fit."""
-    need = 16 * n * n
+#: host bytes per city of a coordinate instance on the sparse path (coordinates, candidate
+#: lists and the k-d tree's work arrays, with room to spare)
+SPARSE_CITY_BYTES = 1024
+
+
+def check_dimension(n: int, where: str, matrix: bool = True) -> None:
+    """Refuse a city count whose distance matrices (float64 + float32, n x n) do not fit, or
+    (``matrix=False``, coordinates for the sparse path) whose per-city arrays do not."""
+    need = 16 * n * n if matrix else SPARSE_CITY_BYTES * n
     if need > memory_bytes() // 2:
+        what = "its distance matrix" if matrix else "its coordinates and candidate lists"
         raise ProblemError(
-            f"{where}: DIMENSION {n} needs {need / 2**30:.1f} GiB for its distance matrix, more "
+            f"{where}: DIMENSION {n} needs {need / 2**30:.1f} GiB for {what}, more "
             f"than half of this machine's {memory_bytes() / 2**30:.1f} GiB")
 
 
@@ -193,6 +200,9 @@ def read_tsplib(path: str | Path) -> TsplibInstance:
         text = path.read_text()
     except UnicodeDecodeError:
         raise ProblemError(f"{path}: not a text file (expected a TSPLIB .tsp file)") from None
+    fast = _read_coords_fast(path, text)
+    if fast is not None:
+        return fast
     lines = text.splitlines()
     if not any(line.strip() for line in lines):
         raise ProblemError(f"{path}: empty file (expected a TSPLIB .tsp file)")
@@ -236,8 +246,8 @@ def read_tsplib(path: str | Path) -> TsplibInstance:
         raise _fail(path, f"DIMENSION {header['DIMENSION']!r} is not an integer") from None
     if n < 3:
         raise _fail(path, f"DIMENSION {n} is too small (a tour needs at least 3 cities)")
-    check_dimension(n, str(path))
     ewt = header.get("EDGE_WEIGHT_TYPE", "").upper()
+    check_dimension(n, str(path), matrix=ewt not in COORD_TYPES)
     name = header.get("NAME", path.stem).removesuffix(".tsp") or path.stem
     comment = header.get("COMMENT", "")
 
@@ -266,6 +276,60 @@ def read_tsplib(path: str | Path) -> TsplibInstance:
         f"EDGE_WEIGHT_TYPE {ewt or '(missing)'} is not supported; use one of"
         f" {', '.join(COORD_TYPES)}, EXPLICIT",
     )
+
+
+_COORD_SECTION = re.compile(r"^[ \t]*NODE_COORD_SECTION[ \t]*:?[ \t]*$", re.M)
+_KEYWORD_LINE = re.compile(r"^[ \t]*[A-Za-z]", re.M)
+_ROW = re.compile(r"^[ \t]*\S+[ \t]+\S+[ \t]+\S+[ \t]*\r?$", re.M)
+
+
+def _read_coords_fast(path: Path, text: str) -> TsplibInstance | None:
+    """A coordinate instance (header, NODE_COORD_SECTION, EOF) parsed with numpy: no Python
+    loop over the cities (a 100,000-city file in a fraction of a second). None for anything
+    else, or anything malformed: the line-by-line reader then reads it, or names the fault."""
+    section = _COORD_SECTION.search(text)
+    if section is None:
+        return None
+    header: dict[str, str] = {}
+    for raw in text[: section.start()].splitlines():  # the header: a few lines
+        stripped = raw.strip()
+        if not stripped:
+            continue
+        kv = _parse_header(stripped)
+        if kv is None or kv[0] in _SECTIONS or kv[0] == "EOF":
+            return None
+        header[kv[0]] = kv[1]
+    rest = text[section.end():]
+    end = _KEYWORD_LINE.search(rest)
+    block = rest if end is None else rest[: end.start()]
+    if end is not None and rest[end.start():].strip().split(":")[0].strip().upper() != "EOF":
+        return None
+    kind = header.get("TYPE", "TSP").split()[0].upper() if header.get("TYPE") else "TSP"
+    ewt = header.get("EDGE_WEIGHT_TYPE", "").upper()
+    try:
+        n = int(header.get("DIMENSION", ""))
+    except ValueError:
+        return None
+    if kind != "TSP" or ewt not in COORD_TYPES or n < 3:
+        return None
+    check_dimension(n, str(path), matrix=False)
+    tokens = block.split()
+    if len(tokens) != 3 * n or len(_ROW.findall(block)) != n:  # n rows of 3 fields
+        return None
+    try:
+        ids = np.array(tokens[0::3], dtype=np.int64)
+        xy = np.stack([np.array(tokens[1::3], dtype=np.float64),
+                       np.array(tokens[2::3], dtype=np.float64)], axis=1)
+    except (ValueError, OverflowError):
+        return None
+    if ids.min() < 1 or ids.max() > n or not np.all(np.isfinite(xy)):
+        return None
+    coords = np.full((n, 2), np.nan)
+    coords[ids - 1] = xy
+    if np.isnan(coords).any():  # a repeated id leaves another row unset
+        return None
+    name = header.get("NAME", path.stem).removesuffix(".tsp") or path.stem
+    return TsplibInstance(name, header.get("COMMENT", ""), n, ewt, coords, None, str(path))
 
 
 def _nint(x: np.ndarray) -> np.ndarray:
@@ -311,6 +375,36 @@ def coord_distances(coords: np.ndarray, metric: str) -> np.ndarray:
     d = d.astype(np.int64)
     np.fill_diagonal(d, 0)
     return d
+
+
+def pair_distances(a: np.ndarray, b: np.ndarray, metric: str,
+                   rounded: bool = True) -> np.ndarray:
+    """float64 TSPLIB distances between coordinates ``a`` and ``b`` (..., 2), broadcast:
+    the formulas of :func:`coord_distances` for one pair at a time (O(pairs) memory);
+    ``rounded=False`` the real Euclidean distance."""
+    metric = metric.upper()
+    a = np.asarray(a, np.float64)
+    b = np.asarray(b, np.float64)
+    if metric == "GEO":
+        lat_a, lon_a = _geo_radians(a[..., 0]), _geo_radians(a[..., 1])
+        lat_b, lon_b = _geo_radians(b[..., 0]), _geo_radians(b[..., 1])
+        q1, q2, q3 = np.cos(lon_a - lon_b), np.cos(lat_a - lat_b), np.cos(lat_a + lat_b)
+        arg = np.clip(0.5 * ((1.0 + q1) * q2 - (1.0 - q1) * q3), -1.0, 1.0)
+        return np.trunc(GEO_RRR * np.arccos(arg) + 1.0)
+    dx = a[..., 0] - b[..., 0]
+    dy = a[..., 1] - b[..., 1]
+    sq = dx**2 + dy**2
+    if not rounded:
+        return np.sqrt(sq)
+    if metric == "EUC_2D":
+        return _nint(np.sqrt(sq))
+    if metric == "CEIL_2D":
+        return np.ceil(np.sqrt(sq))
+    if metric == "ATT":
+        r = np.sqrt(sq / 10.0)
+        t = _nint(r)
+        return np.where(t < r, t + 1.0, t)
+    raise ProblemError(f"metric {metric!r} is not supported; use one of {', '.join(COORD_TYPES)}")
 
 
 def distance_matrix(instance: TsplibInstance) -> np.ndarray:

@@ -19,6 +19,13 @@ as ACOTSP does: Eq. 2 over the allowed candidates, the best allowed node when al
 are tabu; the pheromone-greedy ant of Eq. 6 likewise); ``candidate_lists=False`` applies Eq. 2
 over all nodes at O(n) more work per step.
 
+Sparse path: on a problem without a distance matrix (``problems.tsp_sparse.SparseTSP``, memory
+O(n k)) the trails and choice information live on the candidate edges only ((n, k) arrays,
+``ops.pheromone``), tours are built by ``ops.construction_sparse`` (its fallback, when every
+candidate is tabu, follows the best tour so far, O(1) per step), distances are computed from
+the coordinates, and the colony starts from a Hilbert-curve tour polished by the local search
+(``seed_tour``). With candidate lists of every other city it builds the tours of the dense path.
+
 Every mechanism has a boolean switch in :class:`GraphParams` (traced, so ablations and sweeps vmap).
 Operators that cost compute (crossover, mutation, local search) are static fields: "none"
 removes them from the compiled program.
@@ -63,7 +70,9 @@ from eaco_jax.ops.construction import (
     heuristic_log_eta,
     tour_lengths,
 )
+from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
+from eaco_jax.problems.tsp_sparse import is_sparse
 from eaco_jax.strategies.base import (
     AT_LEAST_ONE,
     BOOL,
@@ -155,6 +164,13 @@ class GraphState(State):
     restarts: Array
 
 
+@struct.dataclass
+class SparseGraphState(GraphState):
+    """The state on a sparse problem: ``tau`` is (n, k), on the candidate edges."""
+
+    first_tour: Array  # (n,) the Hilbert-curve tour after local search: the first reference
+
+
 def acotsp_ls_branching(n: int, p_best: float = 0.05) -> float:
     """The ``branching`` that makes tau_min = tau_max / (2 n), ACOTSP's MMAS limit with local
     search (:func:`eaco_jax.ops.pheromone.mmas_bounds` sets tau_min = tau_max (1 - r) /
@@ -187,6 +203,14 @@ def _f(x: float) -> Array:
     return jnp.asarray(x, jnp.float32)
 
 
+def _candidate_log_eta(problem: Any) -> Array:
+    """(n, k) log(eta) of the candidate edges, computed from the coordinates: the entries of
+    :func:`~eaco_jax.ops.construction.heuristic_log_eta` on them (zero distances as 0.5)."""
+    nbr = problem.neighbors
+    d = problem.dist[jnp.arange(nbr.shape[0])[:, None], nbr]
+    return -jnp.log(jnp.maximum(d.astype(jnp.float32), 0.5))
+
+
 @dataclasses.dataclass(frozen=True)
 class GraphEACO(Strategy):
     """EACO colony for graph problems (TSP). See the module docstring for the algorithm."""
@@ -217,6 +241,9 @@ class GraphEACO(Strategy):
     #: named parameter set of :meth:`default_params` (:data:`PRESETS`); "paper" also turns
     #: ERX crossover and inversion mutation on without local search ("auto")
     preset: str = "default"
+    #: sparse problems: start from a Hilbert-curve tour polished by the local search (the
+    #: first iteration's ant 0 and the fallback's first reference); None: on for them
+    seed_tour: bool | None = None
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -311,6 +338,14 @@ class GraphEACO(Strategy):
 
     # ------------------------------------------------------------------ init
     def prepare(self, problem: Any) -> Any:
+        if is_sparse(problem):
+            nbr = getattr(problem, "neighbors", None)
+            if nbr is None or nbr.ndim != 2 or nbr.shape[0] != problem.n or problem.n < 3:
+                raise ProblemError("a sparse graph problem needs (n, k) candidate lists")
+            if not self.candidate_lists:
+                raise ConfigError("candidate_lists=False needs a distance matrix; the sparse "
+                                  "path builds tours on the candidate lists")
+            return problem
         dist = getattr(problem, "dist", None)
         shape = getattr(dist, "shape", ())
         if len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3:
@@ -318,7 +353,43 @@ class GraphEACO(Strategy):
                 f"graph problem needs an (n, n) distance matrix, n >= 3; got {shape}")
         return problem
 
+    def _seeded(self, problem: Any) -> bool:
+        return is_sparse(problem) and self.seed_tour is not False
+
+    def _init_sparse(self, key: Array, problem: Any, params: GraphParams) -> SparseGraphState:
+        """:meth:`_init` on candidate edges: (n, k) trails, the nearest-neighbour tour on the
+        candidate lists (the Hilbert tour's order where they run out), the first tour."""
+        dist, nbr = problem.dist, problem.neighbors
+        n = problem.n
+        log_eta = _candidate_log_eta(problem)
+        k_chaos, key = jax.random.split(key)
+        hilbert = hilbert_tour(problem.coords)
+        nn_weights = choice_weights(jnp.ones_like(log_eta), log_eta, _f(0.0), _f(1.0))
+        nn_tour = construct_tours_sparse(k_chaos, nn_weights, nbr, jnp.zeros((1,), jnp.int32),
+                                         hilbert, q0=1.0)
+        nn_length = tour_lengths(dist, nn_tour)[0]
+        first = hilbert
+        if self._seeded(problem):
+            first = self._local_search(hilbert[None], problem,
+                                       jax.random.fold_in(k_chaos, 1))[0]
+        tau_max, _ = self._bounds(params.replace(use_bounds=jnp.bool_(True)), nn_length, n)
+        tau0 = jnp.where(params.init_at_tau_max, tau_max, pheromone.initial_tau(n, nn_length))
+        return SparseGraphState(
+            **base_fields(key, params, jnp.arange(n, dtype=jnp.int32)),
+            tau=jnp.full(nbr.shape, tau0, jnp.float32),
+            chaos=chaos.logistic_init(k_chaos, (self.num_ants, n)),
+            iter_best_cost=jnp.asarray(jnp.inf, jnp.float32),
+            pheromone_tour_length=nn_length,
+            since_improvement=jnp.zeros((), jnp.int32),
+            restart_best_solution=jnp.arange(n, dtype=jnp.int32),
+            restart_best_cost=jnp.asarray(jnp.inf, jnp.float32),
+            restarts=jnp.zeros((), jnp.int32),
+            first_tour=first,
+        )
+
     def _init(self, key: Array, problem: Any, params: GraphParams) -> GraphState:
+        if is_sparse(problem):
+            return self._init_sparse(key, problem, params)
         dist = jnp.asarray(problem.dist, jnp.float32)
         n = dist.shape[0]
         log_eta = heuristic_log_eta(dist)
@@ -355,8 +426,9 @@ class GraphEACO(Strategy):
     def _ask(self, key: Array, state: GraphState, problem: Any) -> tuple[Array, GraphState]:
         p = state.params
         m, n = self.num_ants, state.tau.shape[0]
-        dist = jnp.asarray(problem.dist, jnp.float32)
-        log_eta = heuristic_log_eta(dist)
+        sparse = is_sparse(problem)
+        dist = problem.dist if sparse else jnp.asarray(problem.dist, jnp.float32)
+        log_eta = _candidate_log_eta(problem) if sparse else heuristic_log_eta(dist)
         # the ACOTSP-style searches draw a random city order: a fifth key (the other kinds keep
         # the four-way split, so their tours are unchanged)
         dlb = self.local_search in ("2opt-dlb", "2opt+oropt")
@@ -382,6 +454,11 @@ class GraphEACO(Strategy):
         cands = problem.neighbors if self.candidate_lists else None
 
         def build(chaos_factor):
+            if sparse:  # the fallback follows the best tour so far (the first tour before)
+                ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
+                                state.first_tour)
+                return construct_tours_sparse(k_build, stacked, problem.neighbors, starts, ref,
+                                              q0, offset, chaos_factor)
             return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands,
                                    self.construction_fallback)
 
@@ -389,6 +466,9 @@ class GraphEACO(Strategy):
         built = jax.lax.cond(p.use_chaos, lambda: build(factor), lambda: build(None))
         tours, pher_tour = built[:m], built[m:]
         l_pn = tour_lengths(dist, pher_tour)[0]
+        if self._seeded(problem):  # the first iteration's ant 0 takes the first tour
+            tours = tours.at[0].set(jnp.where(jnp.isfinite(state.best_cost), tours[0],
+                                              state.first_tour))
 
         tours = self._genetic(k_cx, k_mut, tours, state, dist)
         tours = self._local_search(tours, problem, k_ls[0] if k_ls else None)
@@ -443,7 +523,7 @@ class GraphEACO(Strategy):
             return tours
         from eaco_jax.ops import local_search
 
-        dist = jnp.asarray(problem.dist, jnp.float32)
+        dist = local_search.as_distances(problem.dist)
         neighbors = problem.neighbors
         if self.ls_neighbors is not None and neighbors is not None:
             neighbors = neighbors[:, : self.ls_neighbors]
@@ -467,6 +547,7 @@ class GraphEACO(Strategy):
     ) -> tuple[GraphState, dict[str, Array]]:
         p = state.params
         n = state.tau.shape[0]
+        cands = problem.neighbors if is_sparse(problem) else None  # (n, k) trails on them
         lengths = fitness.astype(jnp.float32)
         previous_iter_best = state.iter_best_cost
         previous_best = state.best_cost
@@ -494,7 +575,7 @@ class GraphEACO(Strategy):
         # switched-off rules are skipped (lax.cond; a select under vmap over switches)
         tau = jax.lax.cond(
             p.use_local_update,
-            lambda t: pheromone.local_update(t, solutions, lengths, rho_t, p.q),
+            lambda t: pheromone.local_update(t, solutions, lengths, rho_t, p.q, cands),
             lambda t: t, tau,
         )
         # Eq. 71 on the best-so-far tour (every gb_every iterations) or the iteration best
@@ -505,7 +586,7 @@ class GraphEACO(Strategy):
         target_len = jnp.where(use_gb, gb_cost, lengths[i_best])
         tau = jax.lax.cond(
             p.use_global_update,
-            lambda t: pheromone.global_update(t, target, target_len, alpha_g),
+            lambda t: pheromone.global_update(t, target, target_len, alpha_g, cands),
             lambda t: t, tau,
         )
         # Eq. 3-5 deposit weights, Eq. 73-74 elitist reinforcement
@@ -520,14 +601,15 @@ class GraphEACO(Strategy):
             p.use_elitist,
             lambda t: pheromone.elitist_update(
                 t, solutions, lengths, weights / self.num_ants, state.best_solution,
-                state.best_cost, rho_t, p.q, p.sigma,
+                state.best_cost, rho_t, p.q, p.sigma, cands,
             ),
             lambda t: t, tau,
         )
         # Eq. 7 and MMAS restart
         tau_max, tau_min = self._bounds(p, state.best_cost, n)
         tau = pheromone.clamp(tau, tau_min, tau_max)
-        branching = pheromone.branching_factor(tau, problem.neighbors)
+        branching = pheromone.branching_factor(tau, None if cands is not None
+                                               else problem.neighbors)
         converged = (p.restart_branching <= 0) | (branching < p.restart_branching)
         restart = p.use_restart & (since >= p.restart_after) & converged
         reset_to = self._bounds(p.replace(use_bounds=jnp.bool_(True)), state.best_cost, n)[0]
@@ -536,6 +618,8 @@ class GraphEACO(Strategy):
 
         from eaco_jax.ops.diversity import edge_diversity
 
+        diversity = (edge_diversity(solutions) if cands is None
+                     else pheromone.candidate_edge_diversity(solutions, cands))
         state = state.replace(
             tau=tau,
             iter_best_cost=jnp.min(lengths).astype(jnp.float32),
@@ -545,7 +629,7 @@ class GraphEACO(Strategy):
             restarts=state.restarts + restart.astype(jnp.int32),
         )
         metrics = {
-            "diversity": jnp.clip(edge_diversity(solutions), 0.0, 1.0).astype(jnp.float32),
+            "diversity": jnp.clip(diversity, 0.0, 1.0).astype(jnp.float32),
             "rho_t": rho_t.astype(jnp.float32),
             "adaptive_rho": jnp.mean(weight_n).astype(jnp.float32),
             "pheromone_tour_length": state.pheromone_tour_length,
