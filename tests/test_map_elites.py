@@ -189,3 +189,58 @@ def test_body_frame_speeds_of_a_constructed_arc():
     tr3[100:, 0] += 5.0  # a jump after the fall at 1 s does not count
     f3, _ = body_frame_speeds(jnp.asarray(tr3), dt, jnp.asarray(1.0))
     assert float(f3) == pytest.approx(0.5, rel=1e-3)
+
+
+# --------------------------------------------------------------------------- the gait library
+def test_gait_library_fitness_is_survival_then_speed_and_descriptors_are_world_means():
+    """Constructed per-world measurements (2 gaits x 4 worlds): a gait that fell in one world
+    scores 3/4 (no speed term); one that never fell scores 1 + its mean forward speed (never
+    below 1: a backward gait gets no speed term); descriptors are the world means."""
+    from eaco_jax.problems.gait_library import make_gait_library_problem
+
+    prob = make_gait_library_problem(horizon=1.0, worlds=0, lateral_range=(-0.1, 0.1))
+    res = {"fell": jnp.asarray([[0, 1, 0, 0], [0, 0, 0, 0]], bool),
+           "forward_mps": jnp.asarray([[0.2, 0.1, 0.2, 0.3], [-0.1, -0.1, -0.2, 0.0]]),
+           "turn_deg_s": jnp.asarray([[4.0, 8.0, 0.0, 0.0], [-10.0, -10.0, -10.0, -10.0]]),
+           "lateral_mps": jnp.asarray([[0.0, 0.0, 0.04, 0.0], [0.01, 0.01, 0.01, 0.01]])}
+    ev = prob.score(res)
+    np.testing.assert_allclose(np.asarray(ev.f), [-0.75, -1.0], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(ev.descriptors),
+                               [[0.2, 3.0, 0.01], [-0.1, -10.0, 0.01]], rtol=1e-5)
+    res["fell"] = jnp.zeros((2, 4), bool)
+    np.testing.assert_allclose(np.asarray(prob.score(res).f)[0], -1.2, rtol=1e-6)
+
+
+def test_a_tiny_real_gait_library_run():
+    """4 NAO gaits x 2 iterations, 1 s, one optimisation world: every elite sits in the cell
+    of its own measured descriptor and its fitness is in [0, 1 + speed]."""
+    from eaco_jax.problems.gait_library import make_gait_library_problem
+
+    prob = make_gait_library_problem(backend="native", horizon=1.0, worlds=1, seed=5)
+    s = MAPElites(num_ants=4, grid=(3, 3), variation="eaco")
+    res = ea.minimize(prob, s, seed=5, iterations=2)
+    assert int(res.state.evaluations) == 8
+    lib = s.library(res.state, prob)
+    assert 1 <= len(lib["cell"]) <= 8
+    np.testing.assert_array_equal(
+        np.asarray(s.cell_index(jnp.asarray(lib["descriptor"]), prob)), lib["cell"])
+    assert np.all(-lib["cost"] >= 0) and np.all(-lib["cost"] <= 1.5)
+
+
+@pytest.mark.slow
+def test_gait_library_fills_cells_and_its_qd_score_never_drops():
+    from eaco_jax.problems.gait_library import make_gait_library_problem, validate
+
+    prob = make_gait_library_problem(backend="native", horizon=2.0, worlds=2, seed=0)
+    s = MAPElites(num_ants=16, grid=(6, 8), variation="eaco")
+    res = ea.minimize(prob, s, seed=[0, 1], iterations=8)
+    qd = np.asarray(res.history["qd_score"])
+    assert np.all(np.diff(qd, axis=0) >= 0)
+    cov = np.isfinite(np.asarray(res.state.archive_cost)).sum(axis=1)
+    assert np.all(cov >= 5)
+    one = jax.tree.map(lambda a: a[0], res.state)
+    lib = s.library(one, prob)
+    v = validate(prob, lib["x"], trials=4, seed=0)
+    assert v["fall_rate"].shape == (len(lib["cell"]),)
+    assert np.all((v["fall_rate"] >= 0) & (v["fall_rate"] <= 1))
+    assert np.all(np.isfinite(v["forward_mps"])) and np.all(np.isfinite(v["turn_deg_s"]))
