@@ -6,18 +6,21 @@
 #
 #   bash experiments/menagerie_gpu_gaits.sh ROBOT SEED OUT [SEARCH_SECONDS] [TRIALS]
 #
-# search: 512 ants x 16 worlds (CVaR of the worst 4), 6 s horizon, --max-seconds SEARCH_SECONDS
-# [200] (compile excluded); 16 finalists x 256 selection worlds; test: TRIALS [2048] worlds of
-# 20 s on Warp and 1,024 on MJX-JAX.
+# search: ANTS [512] x WORLDS [16] (CVaR of the worst quarter), HORIZON [6] s, --max-seconds
+# SEARCH_SECONDS [200] (compile excluded), warm start INIT [results/ROBOT_cpu_gait.json];
+# 16 finalists x 256 selection worlds; test: TRIALS [2048] worlds of 20 s on Warp and 1,024 on
+# MJX-JAX.
 set -uo pipefail
 robot=$1 seed=$2 out=$3 secs=${4:-200} trials=${5:-2048}
 here=$(cd "$(dirname "$0")" && pwd)
+ANTS=${ANTS:-512} WORLDS=${WORLDS:-16} HORIZON=${HORIZON:-6}
+INIT=${INIT:-$here/results/${robot}_cpu_gait.json}
 mkdir -p "$out"
 log() { echo "[$(date -u +%H:%M:%S)] $*" | tee -a "$out/log.txt"; }
-log "search $robot seed $seed"
-timeout $((secs + 240)) eaco gait --robot "$robot" --backend mjx --impl warp --ants 512 \
-  --robust 16 --horizon 6 --max-seconds "$secs" --seed "$seed" \
-  --init "$here/results/${robot}_cpu_gait.json" --finalists 16 --select-worlds 256 \
+log "search $robot seed $seed ants $ANTS worlds $WORLDS horizon $HORIZON init $INIT"
+timeout $((secs + 240)) eaco gait --robot "$robot" --backend mjx --impl warp --ants "$ANTS" \
+  --robust "$WORLDS" --horizon "$HORIZON" --max-seconds "$secs" --seed "$seed" \
+  --init "$INIT" --finalists 16 --select-worlds 256 \
   --no-video --quiet --out "$out/search" >> "$out/log.txt" 2>&1
 log "search rc $?"
 gait=$out/search/best_gait.json
