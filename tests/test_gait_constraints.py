@@ -51,7 +51,7 @@ def test_each_constraint_reports_its_own_violation():
     g = np.asarray(gc.normalised(vals, mm, 20.0, 2))
     assert list(vals) == list(gc.CONSTRAINTS) and g.shape == (6, 5)
     assert np.all(g[0] <= 0)
-    expected = [0.5, 0.3, 1.0, 0.5, 0.5]
+    expected = [0.5, 0.3 - gc.CURRENT_ROUNDING, 1.0, 0.5, 0.5]
     for i, want in enumerate(expected):
         row = g[i + 1]
         assert row[i] == pytest.approx(want, rel=1e-5), gc.CONSTRAINTS[i]
@@ -120,8 +120,8 @@ def short():
 
 def test_constrained_problem_evaluates_a_real_rollout(short):
     """f = -speed and violation = the sum of the normalised excesses, from one rollout; the
-    stored gait, hot and over the current limit on the motor model, breaks both motor
-    constraints in the host re-check."""
+    stored gait, hot, breaks the endurance constraint in the host re-check; its current stops
+    at the limit (the limits are in the physics), so the current constraint holds."""
     p, stored, mid = short
     assert p.constrained and p.num_inequality == 5 and p.stochastic
     x = jnp.asarray(np.stack([stored, mid]))
@@ -138,7 +138,7 @@ def test_constrained_problem_evaluates_a_real_rollout(short):
     c = check["constraints"]
     assert list(c) == list(gc.CONSTRAINTS)
     assert not c["endurance"]["holds"] and c["endurance"]["value"] > 75.0
-    assert not c["current"]["holds"] and c["current"]["value"] > 1.0
+    assert c["current"]["holds"] and 0.99 < c["current"]["value"] <= 1.0 + 1e-5
     for row in c.values():
         assert row["margin"] == pytest.approx(row["limit"] - row["value"])
         assert row["holds"] == (row["g"] <= 0)

@@ -12,7 +12,10 @@ limit exceeded by its own size" for every constraint (fall: every world fell):
   the same as an endurance of at least ten minutes, but ``g`` keeps growing with the heat where
   the endurance in minutes saturates at 0.
 * ``current``: the peak motor current within the current limit, ``g = max(peak / limit) - 1``
-  (the limit caps torque braking as driving, :func:`~eaco_jax.gait.motors.torque_cap`).
+  (the limit caps torque braking as driving, :func:`~eaco_jax.gait.motors.torque_cap`). With
+  the limits in the physics (:func:`~eaco_jax.gait.motors.physics_limits`) the current stops
+  at the limit, so this holds by construction up to float32 rounding
+  (:data:`CURRENT_ROUNDING` of slack).
 * ``slip``: foot slip while in contact per metre walked at most :data:`SLIP_PER_M`,
   ``g = (slip / max(d, 0.1 m) - 0.05) / 0.05`` with ``d`` the distance walked in the desired
   direction (the floor keeps a gait that barely moves from dividing by ~0).
@@ -54,6 +57,8 @@ DRIFT_MIN_HORIZON = 5.0
 """Below this horizon the drift limit stays at its value for this horizon."""
 NONFINITE_VIOLATION = 100.0
 """Normalised violation of a constraint whose value is not finite (diverged physics)."""
+CURRENT_ROUNDING = 1e-4
+"""Slack on the current constraint: a current held at the limit reads 1 + ~1e-7 in float32."""
 UNITS = {"endurance": "C", "current": "x limit", "slip": "m/m", "drift": "deg",
          "falls": "worlds"}
 
@@ -73,7 +78,8 @@ def drift_limit_deg(horizon: float) -> float:
 def limits(mm: Any, horizon: float) -> dict[str, float]:
     """Each constraint's limit in its own unit (``endurance``: the firmware limit in C, the
     lowest over joints)."""
-    return {"endurance": float(np.min(mm.t_limit)), "current": 1.0, "slip": SLIP_PER_M,
+    return {"endurance": float(np.min(mm.t_limit)), "current": 1.0 + CURRENT_ROUNDING,
+            "slip": SLIP_PER_M,
             "drift": drift_limit_deg(horizon), "falls": 0.0}
 
 

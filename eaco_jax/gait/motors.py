@@ -12,7 +12,9 @@ From the net joint torque ``tau`` and speed ``qdot`` of each physics step (the d
   ``tau qdot eta`` braking (NAO's boards do not recover energy, so a braking motor draws its
   copper loss less what the load returns, never less than 0);
 * the current limit as a torque cap: ``|tau| <= N k_t s i_lim eta`` driving and
-  ``N k_t s i_lim / eta`` braking;
+  ``N k_t s i_lim / eta`` braking; in the physics (:func:`limited_torque`, both backends, when
+  the spec's ``motors.limits_in_physics`` is true) together with the voltage: while driving
+  the joint gets at most ``eta`` times the torque-speed line ``stall - k_b |qdot|``;
 * a two-node thermal model per motor: winding ``w`` and housing ``h`` above ambient,
   ``C_w dT_w/dt = P - (T_w - T_h) / R_wh``, ``C_h dT_h/dt = (T_w - T_h) / R_wh - T_h / R_ha``,
   with ``C_w = tau_w / R_wh`` and ``C_h = tau_h / R_ha``, integrated exactly for a loss held
@@ -117,6 +119,26 @@ def spec_json(spec) -> dict[str, Any]:
 
 
 @functools.lru_cache(maxsize=8)
+def physics_limits(spec) -> bool:
+    """Whether the robot's rollouts apply the current limit and the gear efficiency in the
+    physics (:func:`limited_torque`): the spec's ``motors.limits_in_physics`` (default off;
+    never without electrical data)."""
+    if motor_model(spec) is None:
+        return False
+    return bool(spec_json(spec)["motors"].get("limits_in_physics", False))
+
+
+@functools.lru_cache(maxsize=8)
+def friction_share(spec) -> float:
+    """The share of an actuated joint's damping that is friction, not back-EMF:
+    ``f / (1 + f)`` with the spec's ``motors.frictionloss_fraction`` ``f`` (the damping is
+    ``(1 + f) stall / no-load speed``). With the limits in the physics only this share stays
+    in the model's damping; the back-EMF is part of :func:`limited_torque`."""
+    f = float(spec_json(spec)["motors"].get("frictionloss_fraction", 0.0))
+    return f / (1.0 + f)
+
+
+@functools.lru_cache(maxsize=8)
 def motor_model(spec) -> MotorModel | None:
     """The robot's :class:`MotorModel` (None for a robot without electrical data)."""
     consts = electrical_constants(spec_json(spec), spec.joint_names)
@@ -156,6 +178,28 @@ def torque_cap(tau, qdot, mm: MotorModel, xp=jnp):
     eta = xp.asarray(mm.eta, dt)
     cap = xp.where(tau * qdot >= 0.0, base * eta, base / eta)
     return xp.clip(tau, -cap, cap)
+
+
+def limited_torque(servo, qdot, stall, no_load_speed, mm: MotorModel, xp=jnp):
+    """The joint torque a motor delivers through its gears in one physics step.
+
+    ``servo`` = ``clip(kp (u - q), +-stall)`` is the voltage-saturated position loop in joint
+    torque units; the back-EMF ``k_b qdot`` (``k_b = stall / no_load_speed``) makes it the
+    torque at gear efficiency 1, ``t = servo - k_b qdot``, whose driving bound is the
+    torque-speed line ``stall - k_b |qdot|`` at the supply voltage. The result is ``t`` clipped
+    to ``+-cap``: driving (``t qdot >= 0``) ``cap = eta min(N k_t s i_lim, stall - k_b |qdot|)``
+    (the gears lose ``1 - eta`` of what the motor gives, so the current needed,
+    :func:`current`, reaches the limit or the voltage line exactly at the cap), braking
+    ``cap = N k_t s i_lim / eta`` (friction in the gears helps the motor hold). The current
+    limit is the motor board's, in amperes: it does not move with a world's stall tolerance."""
+    dt = servo.dtype
+    kb = stall / no_load_speed
+    t = servo - kb * qdot
+    lim = xp.asarray(mm.kj * mm.i_limit, dt)
+    eta = xp.asarray(mm.eta, dt)
+    line = xp.maximum(xp.minimum(lim, stall - kb * xp.abs(qdot)), 0.0)
+    cap = xp.where(t * qdot >= 0.0, eta * line, lim / eta)
+    return xp.clip(t, -cap, cap)
 
 
 # ----------------------------------------------------------------------------- thermal
@@ -261,6 +305,6 @@ def minutes_to_limit(power, ripple, mm: MotorModel, xp=jnp, iters: int = 60):
 
 
 __all__ = ["BLOCKS", "KEYS", "MotorModel", "advance", "copper_loss", "current",
-           "electrical_constants", "electrical_power", "minutes_to_limit", "modes",
-           "motor_model", "ripple_bound", "steady_state", "step_response", "temperatures",
-           "torque_cap"]
+           "electrical_constants", "electrical_power", "friction_share", "limited_torque",
+           "minutes_to_limit", "modes", "motor_model", "physics_limits", "ripple_bound",
+           "steady_state", "step_response", "temperatures", "torque_cap"]

@@ -96,9 +96,23 @@ def drive_torque(q, qdot, ctrl, mp: MotorParams, xp=jnp):
     return force - mp.damping * qdot
 
 
-def new_acc(batch: tuple[int, ...], nu: int, xp=jnp, motor: bool = False) -> dict:
+def motor_torque(q, qdot, ctrl, mp: MotorParams, mm: mo.MotorModel, xp=jnp):
+    """With the limits in the physics (:func:`eaco_jax.gait.motors.physics_limits`): the torque
+    the motor delivers to each joint through its gears, from ``q`` and ``qdot`` at the start of
+    the physics step (:func:`eaco_jax.gait.motors.limited_torque` of the saturated servo). The
+    physics applies it as it is (a direct-torque actuator), back-EMF included; only the
+    friction share of the joint damping stays implicit."""
+    u = xp.clip(ctrl, mp.ctrl_lo, mp.ctrl_hi)
+    servo = xp.clip(mp.kp * (u - q), -mp.stall, mp.stall)
+    return mo.limited_torque(servo, qdot, mp.stall, mp.no_load_speed, mm, xp)
+
+
+def new_acc(batch: tuple[int, ...], nu: int, xp=jnp, motor: bool = False,
+            trace_samples: int = 0) -> dict:
     """Empty accumulators for a batch of rollouts (``motor``: also the electrical and thermal
-    ones of :class:`Electrics`)."""
+    ones of :class:`Electrics`; ``trace_samples``: also the winding and housing temperatures
+    above ambient at that many evenly spaced control steps, :attr:`Electrics.trace_every`
+    apart, and the first control step at which each winding reached the firmware limit)."""
     z = lambda *s: xp.zeros(batch + s, xp.float32)  # noqa: E731
     acc = {
         "energy": z(), "peak_power": z(), "steps": z(), "ctrl_steps": z(), "air_steps": z(),
@@ -110,6 +124,9 @@ def new_acc(batch: tuple[int, ...], nu: int, xp=jnp, motor: bool = False) -> dic
     if motor:
         acc.update({"energy_el": z(), "sum_i2": z(nu), "peak_i": z(nu), "loss_j": z(nu),
                     "therm": z(nu, 2), "loss_blocks": z(mo.BLOCKS, nu)})
+        if trace_samples:
+            acc["therm_trace"] = z(trace_samples, nu, 2)
+            acc["hot_step"] = xp.full(batch + (nu,), -1, xp.int32)
     return acc
 
 
@@ -122,22 +139,36 @@ class Electrics(NamedTuple):
     modes: mo.Modes
     substeps: int
     horizon: int
+    trace_every: int = 0
 
 
-def electrics(spec, control_dt: float, substeps: int, horizon: int) -> Electrics | None:
-    """:class:`Electrics` of a robot (None without electrical data)."""
+def electrics(spec, control_dt: float, substeps: int, horizon: int,
+              trace_every: int = 0) -> Electrics | None:
+    """:class:`Electrics` of a robot (None without electrical data); ``trace_every``: control
+    steps between temperature samples (0: no trace)."""
     mm = mo.motor_model(spec)
     if mm is None:
         return None
-    return Electrics(mm, mo.modes(mm, control_dt), int(substeps), int(horizon))
+    return Electrics(mm, mo.modes(mm, control_dt), int(substeps), int(horizon),
+                     int(trace_every))
+
+
+def trace_samples(el: Electrics | None) -> int:
+    """Temperature samples a rollout of ``el.horizon`` control steps records."""
+    if el is None or not el.trace_every:
+        return 0
+    return el.horizon // el.trace_every
 
 
 def add_physics(acc: dict, q, qdot, ctrl, alive, mp: MotorParams, dt: float, xp=jnp,
-                el: Electrics | None = None, step0=0) -> dict:
+                el: Electrics | None = None, step0=0, tau=None) -> dict:
     """Accumulate physics steps: ``q`` (before), ``qdot`` (after) ``(B, S, nu)``, ``ctrl``
     ``(B, S, nu)`` or ``(B, 1, nu)``, ``alive`` ``(B, S)``; ``mp`` fields ``(B, 1, nu)``.
-    With ``el`` the steps are whole control steps, the first one ``step0``."""
-    tau = drive_torque(q, qdot, ctrl, mp, xp)
+    With ``el`` the steps are whole control steps, the first one ``step0``. ``tau``: the joint
+    torques the physics applied (:func:`motor_torque`, limits in the physics), else
+    :func:`drive_torque`."""
+    if tau is None:
+        tau = drive_torque(q, qdot, ctrl, mp, xp)
     m = alive[..., None]
     power = xp.sum(xp.maximum(tau * qdot, 0.0), axis=-1)
     power = xp.where(alive, power, 0.0)
@@ -174,14 +205,41 @@ def _add_electrics(acc: dict, tau, qdot, m, dt: float, el: Electrics, step0, xp)
         np.add.at(blocks, (slice(None), blk), per_ctrl * ctrl_dt)
     else:
         blocks = acc["loss_blocks"].at[:, blk].add(per_ctrl * ctrl_dt)
-    return {
+    out = {
         "energy_el": acc["energy_el"] + xp.sum(p_el, axis=(-1, -2)) * dt,
         "sum_i2": acc["sum_i2"] + xp.sum(xp.where(m, i * i, 0.0), axis=-2),
         "peak_i": xp.maximum(acc["peak_i"], xp.max(xp.where(m, xp.abs(i), 0.0), axis=-2)),
         "loss_j": acc["loss_j"] + xp.sum(loss, axis=-2) * dt,
-        "therm": mo.advance(acc["therm"], per_ctrl, el.modes, xp).astype(xp.float32),
         "loss_blocks": blocks.astype(xp.float32),
     }
+    if "therm_trace" not in acc:
+        out["therm"] = mo.advance(acc["therm"], per_ctrl, el.modes, xp).astype(xp.float32)
+        return out
+    return out | _trace_steps(acc, per_ctrl, el, step0, xp)
+
+
+def _trace_steps(acc: dict, per_ctrl, el: Electrics, step0, xp) -> dict:
+    """The thermal state control step by control step: samples every ``el.trace_every``
+    steps into ``therm_trace``, the first step each winding reaches the firmware limit into
+    ``hot_step`` (the modal state in float32 as without a trace)."""
+    z, trace, hot = acc["therm"], acc["therm_trace"], acc["hot_step"]
+    rise = xp.asarray(el.model.t_limit - el.model.t_ambient, xp.float32)
+    n = trace.shape[1]
+    if xp is np:
+        trace = np.array(trace, copy=True)
+    for j in range(per_ctrl.shape[1]):
+        z = mo.advance(z, per_ctrl[:, j : j + 1], el.modes, xp).astype(xp.float32)
+        temps = mo.temperatures(z, el.modes, xp).astype(xp.float32)  # (B, nu, 2)
+        done = step0 + j + 1  # control steps simulated
+        hot = xp.where((hot < 0) & (temps[..., 0] >= rise), done - 1, hot)
+        slot = xp.clip(done // el.trace_every - 1, 0, n - 1)
+        keep = (done % el.trace_every == 0) & (done // el.trace_every <= n)
+        if xp is np:
+            if keep:
+                trace[:, slot] = temps
+        else:
+            trace = trace.at[:, slot].set(xp.where(keep, temps, trace[:, slot]))
+    return {"therm": z, "therm_trace": trace, "hot_step": hot.astype(xp.int32)}
 
 
 def add_control(acc: dict, soles, alive, normal, radius: float, xp=jnp) -> dict:
@@ -273,7 +331,12 @@ def _finalize_electrics(acc, distance, mass, seconds, steps, mm: mo.MotorModel) 
         "endurance_min": f32(endurance),
         "min_endurance_min": f32(jnp.min(endurance, axis=-1)),
         "peak_current_max_frac": f32(jnp.max(acc["peak_i"] / mm.i_limit, axis=-1)),
-    }
+    } | ({} if "therm_trace" not in acc else {
+        "winding_trace_c": f32(amb + acc["therm_trace"][..., 0]),
+        "housing_trace_c": f32(amb + acc["therm_trace"][..., 1]),
+        "housing_end_c": f32(amb + temps[..., 1]),
+        "limit_step": acc["hot_step"],
+    })
 
 
 ENVELOPE_COLUMNS = ("rms_torque_nm", "rms_torque_frac", "peak_torque_nm", "peak_torque_frac",
@@ -367,5 +430,6 @@ def sole_sensor_names(spec) -> list[str]:
     return [f"sole_pos_{g}" for g in spec.foot_geoms]
 
 
-__all__ = ["Electrics", "MotorParams", "add_control", "add_physics", "drive_torque",
-           "electrics", "finalize", "motor_params", "new_acc", "overheating"]
+__all__ = ["Electrics", "MotorParams", "add_control", "add_physics",
+           "drive_torque", "electrics", "finalize", "motor_params", "motor_torque", "new_acc",
+           "overheating", "trace_samples"]

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from eaco_jax.gait import motors as mo
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import is_down
 from eaco_jax.gait.mjx_import import quiet_mjx
@@ -33,6 +34,7 @@ from eaco_jax.gait.rollout_native import (
     native_model,
     nominal_motor,
     substeps,
+    torque_model,
 )
 from eaco_jax.gait.walk_engine import stand_pose
 from eaco_jax.gait.worlds import (
@@ -54,15 +56,17 @@ IMPLS = ("jax", "warp")
 
 
 @functools.lru_cache(maxsize=16)
-def mjx_model(spec: RobotSpec, slope_deg: float, accuracy: str, impl: str = "jax") -> mjx.Model:
+def mjx_model(spec: RobotSpec, slope_deg: float, accuracy: str, impl: str = "jax",
+              torque: bool = False) -> mjx.Model:
     """The MJX model for ``(robot, slope, accuracy)`` and implementation (``"jax"`` or
-    ``"warp"``: MuJoCo Warp through MJX's FFI, CUDA only), cached (same MjModel as native).
+    ``"warp"``: MuJoCo Warp through MJX's FFI, CUDA only), cached (same MjModel as native;
+    ``torque``: its direct-torque form, :func:`~eaco_jax.gait.rollout_native.torque_model`).
 
     Built with concrete arrays even when first called inside a jit trace: the cache outlives
     the trace, so a traced model would leak into the next one.
     """
     with jax.ensure_compile_time_eval():
-        model = native_model(spec, slope_deg, accuracy)
+        model = (torque_model if torque else native_model)(spec, slope_deg, accuracy)
         if impl == "jax":
             return mjx.put_model(model)
         return _warp_model(model)
@@ -177,11 +181,16 @@ def mjx_rollout(
     quality: bool = False,
     record: bool = False,
     impl: str = "jax",
+    limits: bool | None = None,
+    trace_every: int = 0,
 ) -> dict[str, jax.Array]:
     """Roll out the ants' targets ``controls`` ``(A, T, nu)`` on MJX (in R worlds if given).
 
     Returns ``trace`` ``(B, T + 1, 7)``, ``qpos`` ``(B, T + 1, nq)`` with ``record`` and the
     quality accumulators ``acc`` with ``quality``; ``B = A * R`` (R = 1 without worlds).
+    ``limits`` (default: the spec's): the motor limits in the physics. ``trace_every`` (with
+    ``quality``): sample the motors' temperatures every that many control steps, inside the
+    scan (no per-step history is kept).
     ``impl="warp"`` runs MuJoCo Warp (CUDA) with contact and constraint buffers sized from the
     model and the batch (:func:`contact_capacity`); an overflow is reported on stderr.
     Traceable: call it inside jit / scan.
@@ -190,7 +199,11 @@ def mjx_rollout(
         raise ValueError(f"impl must be one of {IMPLS}, got {impl!r}")
     model = native_model(spec, float(slope_deg), accuracy)
     k = substeps(spec, model)
-    mm = mjx_model(spec, float(slope_deg), accuracy, impl)
+    limits = mo.physics_limits(spec) if limits is None else bool(limits)
+    if limits and mo.motor_model(spec) is None:
+        raise ValueError(f"robot {spec.name}: no electrical motor data, no limits to apply")
+    need_motor = quality or limits
+    mm = mjx_model(spec, float(slope_deg), accuracy, impl, limits)
     a, n_steps, nu = controls.shape
     controls = controls.astype(jnp.float32)
     qpos0 = jnp.asarray(initial_state(spec, model, slope_deg)[1 : 1 + model.nq], jnp.float32)
@@ -210,19 +223,22 @@ def mjx_rollout(
         d0 = dw.replace(ctrl=ctrl0)
         data = jax.vmap(lambda q: mjx.forward(mm, d0.replace(qpos=q)))(
             jnp.broadcast_to(qpos0, (nb,) + qpos0.shape))
-        motor = nominal_motor(spec, model) if quality else None
+        motor = nominal_motor(spec, model) if need_motor else None
         mp = None if motor is None else ql.MotorParams(
             *(jnp.broadcast_to(jnp.asarray(x, jnp.float32), (nb, nu))[:, None] for x in motor))
     elif worlds is None:
         step = jax.vmap(lambda d: mjx.step(mm, d))
         data = mjx.forward(mm, mjx.make_data(mm).replace(qpos=qpos0, ctrl=ctrl0))
         data = jax.tree.map(lambda x: jnp.broadcast_to(x, (nb,) + x.shape), data)
-        motor = nominal_motor(spec, model) if quality else None
+        motor = nominal_motor(spec, model) if need_motor else None
         mp = None if motor is None else ql.MotorParams(
             *(jnp.broadcast_to(jnp.asarray(x, jnp.float32), (nb, nu))[:, None] for x in motor))
     else:
-        base = {f: getattr(mm, f) for f in VARIED_FIELDS}
+        base = {f: jnp.asarray(getattr(model, f), jnp.float32) for f in VARIED_FIELDS}
         fields = model_fields(base, worlds, friction_geom_ids(model, spec), dofs)
+        servo_fields = fields
+        if limits:
+            fields = _torque_fields(fields, dofs, mo.friction_share(spec))
         mmb, axes = _world_model(mm, fields, world_of)
         step = jax.vmap(mjx.step, in_axes=(axes, 0))
         qadr = np.array([model.joint(n).qposadr[0] for n in spec.joint_names])
@@ -232,14 +248,14 @@ def mjx_rollout(
         data = jax.vmap(lambda m_, q: mjx.forward(m_, d0.replace(qpos=q)), in_axes=(axes, 0))(
             mmb, jnp.take(qinit, world_of, axis=0))
         mp = None
-        if quality:
-            motor = ql.motor_params(fields, spec, dofs, model.actuator_ctrlrange,
+        if need_motor:
+            motor = ql.motor_params(servo_fields, spec, dofs, model.actuator_ctrlrange,
                                     worlds.stall_scale, worlds.speed_scale)
             mp = ql.MotorParams(*(jnp.take(jnp.broadcast_to(jnp.asarray(x, jnp.float32),
                                                             (r, nu)), world_of, axis=0)[:, None]
                                   for x in motor))
     sole_adr = None
-    el = ql.electrics(spec, spec.control_dt, k, n_steps) if quality else None
+    el = ql.electrics(spec, spec.control_dt, k, n_steps, trace_every) if quality else None
     if quality:
         sole_adr = np.concatenate([model.sensor_adr[model.sensor(n).id] + np.arange(3)
                                    for n in ql.sole_sensor_names(spec)])
@@ -253,6 +269,18 @@ def mjx_rollout(
             return couple_controls(controls[:, t], spec)
         return world_ctrl_at(controls, t, worlds, spec).reshape(nb, nu)
 
+    mlim = mo.motor_model(spec) if limits else None
+    mp0 = None if mp is None else ql.MotorParams(*(x[:, 0] for x in mp))
+
+    def physics(dd):
+        """One physics step; with the limits the command is this step's motor torque."""
+        if limits:
+            tau = ql.motor_torque(dd.qpos[:, qadr_all], dd.qvel[:, dofs], dd.ctrl, mp0, mlim)
+            dn = dd.replace(ctrl=tau)
+            dn = step(dn) if worlds is None else step(mmb, dn)
+            return dn.replace(ctrl=dd.ctrl), tau
+        return (step(dd) if worlds is None else step(mmb, dd)), None
+
     def control_step(carry, t):
         d, acc, alive, peak = carry
         u = targets(t)
@@ -263,20 +291,20 @@ def mjx_rollout(
             d = d.replace(qfrc_applied=qfrc)
         if quality:
             def sub(dd, _):
-                q = dd.qpos[:, qadr_all]
-                dd = step(dd) if worlds is None else step(mmb, dd)
-                return dd, (q, dd.qvel[:, dofs])
+                q, v0 = dd.qpos[:, qadr_all], dd.qvel[:, dofs]
+                dd, tau = physics(dd)
+                # with the limits: the speeds each torque was computed at (the step's start)
+                return dd, (q, v0 if limits else dd.qvel[:, dofs], tau)
 
-            d, (q, qdot) = jax.lax.scan(sub, d, None, length=k)
+            d, (q, qdot, tau) = jax.lax.scan(sub, d, None, length=k)
             keep = jnp.broadcast_to(alive[:, None], (nb, k))
             acc = ql.add_physics(acc, jnp.swapaxes(q, 0, 1), jnp.swapaxes(qdot, 0, 1),
-                                 u[:, None], keep, mp, dt, el=el, step0=t)
+                                 u[:, None], keep, mp, dt, el=el, step0=t,
+                                 tau=None if tau is None else jnp.swapaxes(tau, 0, 1))
             soles = d.sensordata[:, sole_adr].reshape(nb, 1, -1, 3)
             acc = ql.add_control(acc, soles, alive[:, None], normal, radius)
-        elif worlds is None:
-            d = jax.lax.fori_loop(0, k, lambda _, dd: step(dd), d)
         else:
-            d = jax.lax.fori_loop(0, k, lambda _, dd: step(mmb, dd), d)
+            d = jax.lax.fori_loop(0, k, lambda _, dd: physics(dd)[0], d)
         row = root_trace(d.qpos)
         alive = alive & ~is_down(row[:, :3], row[:, 3:6], spec.fall_height, spec.fall_tilt_deg,
                                  slope_deg)
@@ -286,7 +314,8 @@ def mjx_rollout(
 
     start = root_trace(data.qpos)
     alive0 = ~is_down(start[:, :3], start[:, 3:6], spec.fall_height, spec.fall_tilt_deg, slope_deg)
-    acc0 = ql.new_acc((nb,), nu, motor=el is not None) if quality else None
+    acc0 = (ql.new_acc((nb,), nu, motor=el is not None, trace_samples=ql.trace_samples(el))
+            if quality else None)
     peak0 = jnp.zeros((2,), jnp.int32)
     (_, acc, _, peak), (trace, qpos) = jax.lax.scan(
         control_step, (data, acc0, alive0, peak0), jnp.arange(n_steps))
@@ -298,6 +327,17 @@ def mjx_rollout(
     if quality:
         out["acc"] = acc
     return out
+
+
+def _torque_fields(fields: dict, dofs, keep: float) -> dict:
+    """Per-world fields of the direct-torque model
+    (:func:`~eaco_jax.gait.rollout_native.to_torque_actuators`): gain 1, no bias, the friction
+    share ``keep`` of the actuated dofs' damping."""
+    gain = jnp.zeros_like(fields["actuator_gainprm"]).at[..., 0].set(1.0)
+    damping = fields["dof_damping"].at[..., np.asarray(dofs)].multiply(keep)
+    return fields | {"actuator_gainprm": gain,
+                     "actuator_biasprm": jnp.zeros_like(fields["actuator_biasprm"]),
+                     "dof_damping": damping}
 
 
 def mjx_trace(

@@ -10,6 +10,12 @@ result is the torso trace ``(B, T + 1, 7)`` (position, up axis, heading), row 0 
 exactly what :func:`eaco_jax.gait.fitness.summarize` reads; with ``quality`` also the
 accumulators of :mod:`eaco_jax.gait.quality`, computed from every physics step of each chunk.
 
+With the motor limits in the physics (:func:`eaco_jax.gait.motors.physics_limits`, or
+``limits=True``) the actuators are direct-torque ones (:func:`torque_model`) and each physics
+step's torque is computed from that step's joint state
+(:func:`eaco_jax.gait.quality.motor_torque`: current limit, torque-speed line, gear efficiency),
+the same function MJX calls; ``mujoco.rollout`` then runs one physics step per call.
+
 :func:`native_trace` is the plain host function (nominal world); :func:`native_rollout` the
 general one (per-rollout models, initial poses and pushes); :func:`native_rollout_callback` wraps
 it with ``jax.pure_callback`` so a jitted colony loop (``lax.scan`` in
@@ -32,6 +38,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
+from eaco_jax.gait import motors as mo
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import is_down
 from eaco_jax.gait.robot import RobotSpec, load_model, stand_qpos
@@ -94,6 +101,27 @@ route_mujoco_warnings()
 def native_model(spec: RobotSpec, slope_deg: float, accuracy: str) -> mujoco.MjModel:
     """The compiled model for ``(robot, slope, accuracy)``, cached."""
     return load_model(spec, slope_deg=slope_deg, accuracy=accuracy)
+
+
+def to_torque_actuators(model: mujoco.MjModel, dofs, keep: float) -> mujoco.MjModel:
+    """``model`` (changed in place) with direct-torque actuators: force = ctrl, no control or
+    force clamp (the limits are applied when the command is computed), and only the friction
+    share ``keep`` of the actuated ``dofs``' damping (the back-EMF is in the command)."""
+    model.dof_damping[np.asarray(dofs)] *= keep
+    model.actuator_gainprm[:] = 0.0
+    model.actuator_gainprm[:, 0] = 1.0
+    model.actuator_biasprm[:] = 0.0
+    model.actuator_ctrllimited[:] = 0
+    model.actuator_forcelimited[:] = 0
+    return model
+
+
+@functools.lru_cache(maxsize=16)
+def torque_model(spec: RobotSpec, slope_deg: float, accuracy: str) -> mujoco.MjModel:
+    """:func:`native_model` with direct-torque actuators (:func:`to_torque_actuators`)."""
+    model = native_model(spec, slope_deg, accuracy)
+    return to_torque_actuators(copy.copy(model), actuated_dofs(model, spec),
+                               mo.friction_share(spec))
 
 
 @functools.lru_cache(maxsize=16)
@@ -162,6 +190,8 @@ def native_rollout(
     motor: ql.MotorParams | None = None,
     record_qpos: bool = False,
     nthread: int | None = None,
+    limits: bool | None = None,
+    trace_every: int = 0,
 ) -> dict[str, np.ndarray]:
     """Roll out ``controls`` ``(B, T, nu)`` (each held for one control step) on the host.
 
@@ -170,6 +200,9 @@ def native_rollout(
     per control step. Returns ``trace`` ``(B, T + 1, 7)``, with ``record_qpos`` also ``qpos``
     ``(B, T + 1, nq)``, with ``quality`` the accumulators ``acc`` (``motor``: per-rollout
     :class:`~eaco_jax.gait.quality.MotorParams` ``(B, nu)``, default from the nominal model).
+    ``limits`` (default: the spec's, :func:`~eaco_jax.gait.motors.physics_limits`): the motor
+    limits in the physics; ``models`` are then position-servo models as without (their servo
+    constants give ``motor``'s defaults) and are switched to direct torque here.
     """
     controls = np.asarray(controls, np.float64)
     if controls.ndim != 3 or controls.shape[-1] != spec.nu:
@@ -177,7 +210,14 @@ def native_rollout(
     base = native_model(spec, float(slope_deg), accuracy)
     k = substeps(spec, base)
     nb, steps, _ = controls.shape
+    limits = mo.physics_limits(spec) if limits is None else bool(limits)
+    if limits and mo.motor_model(spec) is None:
+        raise ValueError(f"robot {spec.name}: no electrical motor data, no limits to apply")
     model_arg = base if models is None else list(models)
+    if limits:
+        motor = motor or nominal_motor(spec, base)
+        model_arg = (torque_model(spec, float(slope_deg), accuracy) if models is None else
+                     _torque_copies(model_arg, spec))
     nthread = nthread or os.cpu_count() or 1
     datas = [mujoco.MjData(base) for _ in range(nthread)]
     if qpos_init is None:
@@ -193,14 +233,19 @@ def native_rollout(
     if record_qpos:
         qpos_rec[:, 0] = state[:, 1 : 1 + base.nq]
     acc = None
+    dofs = np.asarray(actuated_dofs(base, spec))
+    qadr = np.array([base.joint(n).qposadr[0] for n in spec.joint_names])
+    feedback = None
+    if limits:
+        feedback = _Feedback(motor, nb, spec.nu, mo.motor_model(spec), qadr, dofs, model_arg,
+                             state)
     if quality:
-        el = ql.electrics(spec, spec.control_dt, k, steps)
-        acc = ql.new_acc((nb,), spec.nu, xp=np, motor=el is not None)
+        el = ql.electrics(spec, spec.control_dt, k, steps, trace_every)
+        acc = ql.new_acc((nb,), spec.nu, xp=np, motor=el is not None,
+                         trace_samples=ql.trace_samples(el))
         motor = motor or nominal_motor(spec, base)
         mp = ql.MotorParams(*(np.broadcast_to(np.asarray(a, np.float32), (nb, spec.nu))[:, None]
                               for a in motor))
-        dofs = np.asarray(actuated_dofs(base, spec))
-        qadr = np.array([base.joint(n).qposadr[0] for n in spec.joint_names])
         sole = _sole_adr(base, spec)
         normal = floor_normal(slope_deg)
         radius = float(base.geom_size[base.geom(spec.foot_geoms[0]).id, 0])
@@ -216,7 +261,12 @@ def native_rollout(
             qfrc[..., :3] = np.repeat(np.asarray(push[:, start:stop], np.float64), k, axis=1)
             ctrl = np.concatenate([ctrl, qfrc], axis=-1)
             spec_bits = _PUSH_SPEC
-        out, sens = pool.rollout(model_arg, datas, state, ctrl, control_spec=int(spec_bits))
+        taus = None
+        if feedback is None:
+            out, sens = pool.rollout(model_arg, datas, state, ctrl,
+                                     control_spec=int(spec_bits))
+        else:
+            out, sens, taus, speeds = feedback.run(ctrl)
         sampled = out[:, k - 1 :: k]  # state after each control step
         rows = root_trace(sampled[..., 1:8])
         trace[:, start + 1 : stop + 1] = rows
@@ -230,11 +280,13 @@ def native_rollout(
                 [np.ones((nb, 1), bool), np.cumprod(~down[:, :-1], axis=1).astype(bool)], 1)
             q_before = np.concatenate([state[:, None, 1 : 1 + base.nq], out[:, :-1, 1:1 + base.nq]],
                                       axis=1)[..., qadr]
-            qdot = out[..., 1 + base.nq + dofs]
+            # with the limits in the physics, the speeds each torque was computed at
+            qdot = out[..., 1 + base.nq + dofs] if taus is None else speeds
             acc = ql.add_physics(acc, q_before.astype(np.float32), qdot.astype(np.float32),
                                  ctrl[..., : spec.nu].astype(np.float32),
                                  np.repeat(alive_k, k, axis=1), mp, float(base.opt.timestep),
-                                 xp=np, el=el, step0=start)
+                                 xp=np, el=el, step0=start,
+                                 tau=None if taus is None else taus.astype(np.float32))
             soles = sens[:, k - 1 :: k][..., sole].reshape(nb, stop - start, -1, 3)
             acc = ql.add_control(acc, soles.astype(np.float32), alive_k, normal, radius, xp=np)
             alive = alive & ~np.any(down, axis=1)
@@ -243,9 +295,62 @@ def native_rollout(
     if record_qpos:
         result["qpos"] = qpos_rec
     if quality:
-        result["acc"] = {k_: np.asarray(v, np.float32) if v.dtype != bool else v
+        result["acc"] = {k_: np.asarray(v, np.float32) if v.dtype.kind == "f" else v
                          for k_, v in acc.items()}
     return result
+
+
+def _torque_copies(models: list[mujoco.MjModel], spec: RobotSpec) -> list[mujoco.MjModel]:
+    """Direct-torque copies of position-servo models (equal models share one copy)."""
+    done: dict[int, mujoco.MjModel] = {}
+    dofs, keep = actuated_dofs(models[0], spec), mo.friction_share(spec)
+    for m in models:
+        if id(m) not in done:
+            done[id(m)] = to_torque_actuators(copy.copy(m), dofs, keep)
+    return [done[id(m)] for m in models]
+
+
+class _Feedback:
+    """Physics steps whose actuator command is computed from the state each starts from
+    (:func:`~eaco_jax.gait.quality.motor_torque`): one ``MjData`` per rollout, kept across
+    chunks (so the solver's warm start carries over, as on MJX), stepped by ``mj_step``."""
+
+    def __init__(self, motor: ql.MotorParams, nb: int, nu: int, mm: mo.MotorModel,
+                 qadr: np.ndarray, dofs: np.ndarray, models, state: np.ndarray) -> None:
+        self.mp = ql.MotorParams(*(np.broadcast_to(np.asarray(a, np.float64), (nb, nu))
+                                   for a in motor))
+        self.mm, self.qadr, self.dofs = mm, qadr, dofs
+        self.models = [models] * nb if isinstance(models, mujoco.MjModel) else list(models)
+        self.datas = [mujoco.MjData(m) for m in self.models]
+        for m, d, row in zip(self.models, self.datas, state, strict=True):
+            mujoco.mj_setState(m, d, row, _STATE)
+
+    def run(self, ctrl: np.ndarray):
+        """``ctrl`` ``(B, S, nu [+ nv])``: targets (and applied forces) per physics step.
+        Returns the states ``(B, S, nstate)``, sensors, joint torques ``(B, S, nu)`` and the
+        joint speeds they were computed at (each step's start)."""
+        nb, steps = ctrl.shape[:2]
+        nu = self.mp.kp.shape[-1]
+        m0 = self.models[0]
+        out = np.empty((nb, steps, mujoco.mj_stateSize(m0, _STATE)))
+        sens = np.empty((nb, steps, m0.nsensordata))
+        taus = np.empty((nb, steps, nu))
+        speeds = np.empty((nb, steps, nu))
+        q = np.empty((nb, nu))
+        qdot = np.empty((nb, nu))
+        for s in range(steps):
+            for b, d in enumerate(self.datas):
+                q[b], qdot[b] = d.qpos[self.qadr], d.qvel[self.dofs]
+            tau = ql.motor_torque(q, qdot, ctrl[:, s, :nu], self.mp, self.mm, np)
+            taus[:, s], speeds[:, s] = tau, qdot
+            for b, (m, d) in enumerate(zip(self.models, self.datas, strict=True)):
+                d.ctrl[:] = tau[b]
+                if ctrl.shape[-1] > nu:
+                    d.qfrc_applied[:] = ctrl[b, s, nu:]
+                mujoco.mj_step(m, d)
+                mujoco.mj_getState(m, d, out[b, s], _STATE)
+                sens[b, s] = d.sensordata
+        return out, sens, taus, speeds
 
 
 def nominal_motor(spec: RobotSpec, model: mujoco.MjModel) -> ql.MotorParams:
@@ -315,13 +420,15 @@ def native_rollout_callback(
     accuracy: str = "fast",
     worlds: Worlds | None = None,
     quality: bool = False,
+    trace_every: int = 0,
 ):
     """:func:`native_rollout` as a ``jax.pure_callback`` (usable under jit, vmap and scan).
 
     ``controls`` ``(A, T, nu)``; with ``worlds`` (R of them) every ant runs in every world, rollout
     ``b = a * R + r``. Returns ``trace`` ``(B, T + 1, 7)`` and, with ``quality``, ``acc`` (dict of
     accumulators, leading axis B). The worlds' targets, pushes and initial poses are computed here
-    in JAX by the same functions the MJX backend uses.
+    in JAX by the same functions the MJX backend uses. ``trace_every``: as
+    :func:`native_rollout`'s.
     """
     base = native_model(spec, float(slope_deg), accuracy)
     a, t, nu = controls.shape[-3:]
@@ -349,7 +456,9 @@ def native_rollout_callback(
     shapes: dict[str, jax.ShapeDtypeStruct] = {
         "trace": jax.ShapeDtypeStruct(lead + (nb, t + 1, TRACE_COLUMNS), jnp.float32)}
     if quality:
-        template = ql.new_acc((nb,), nu, xp=np, motor=ql.mo.motor_model(spec) is not None)
+        el = ql.electrics(spec, spec.control_dt, 1, t, trace_every)
+        template = ql.new_acc((nb,), nu, xp=np, motor=el is not None,
+                              trace_samples=ql.trace_samples(el))
         shapes["acc"] = {k: jax.ShapeDtypeStruct(lead + v.shape, v.dtype)
                          for k, v in template.items()}
     names = sorted(args)
@@ -364,7 +473,8 @@ def native_rollout_callback(
             models, motor = _world_models(base, spec, {k: flat[k] for k in _WORLD_ARRAYS})
             opts = dict(models=models, motor=motor, qpos_init=flat["qinit"].astype(np.float64),
                         push=flat["push"])
-        out = native_rollout(flat["ctrl"], spec, slope_deg, accuracy, quality=quality, **opts)
+        out = native_rollout(flat["ctrl"], spec, slope_deg, accuracy, quality=quality,
+                             trace_every=trace_every, **opts)
         res = {"trace": out["trace"].reshape(extra + (nb, t + 1, TRACE_COLUMNS))}
         if quality:
             res["acc"] = {k: v.reshape(extra + (nb,) + v.shape[1:]) for k, v in out["acc"].items()}

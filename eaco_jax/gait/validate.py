@@ -111,7 +111,11 @@ def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
 def export_run(problem: Any, params: Any, path: str | Path,
                horizon: float | None = None) -> Path:
     """Simulate one gait (nominal world, MuJoCo's C engine, a model compiled from the exported
-    MJCF text) and write the run to ``path`` (``.npz``, see the module docstring)."""
+    MJCF text) and write the run to ``path`` (``.npz``, see the module docstring). The export
+    is the position-servo model without the motor limits of
+    :func:`eaco_jax.gait.motors.physics_limits` (their torque is computed per physics step from
+    the state, which plain MuJoCo's open-loop ``ctrl`` cannot replay); ``limits_in_physics``
+    in the file says so."""
     prob = problem if horizon is None else problem.replace(horizon=float(horizon))
     x = _params(prob, params)
     spec = prob.spec
@@ -137,7 +141,7 @@ def export_run(problem: Any, params: Any, path: str | Path,
         qpos=np.array(qpos), qvel=np.array(qvel), model_xml=np.array(xml),
         timestep=np.float64(model.opt.timestep), params=np.asarray(x[0], np.float64),
         slope_deg=np.float64(prob.slope_deg), direction_deg=np.float64(prob.direction_deg),
-        joint_names=np.array(spec.joint_names))
+        joint_names=np.array(spec.joint_names), limits_in_physics=np.bool_(False))
     return path
 
 
