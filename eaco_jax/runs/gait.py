@@ -202,6 +202,10 @@ class GaitEvalSettings:
                              "file's, else auto)")
     export: str | None = setting(None, "write the simulated run to this .npz (ctrl, qpos, qvel, "
                                  "the model's MJCF): it replays on plain mujoco")
+    thermal: bool | None = setting(None, "integrate the motors' temperatures from 25 C along "
+                                   "the walk (trace every second, plot, firmware limit; with "
+                                   "--trials in those worlds, instead of the plain trials); "
+                                   "default: on for a horizon of 60 s or more")
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -619,7 +623,14 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
         "seconds": time.perf_counter() - t0,
         "out": s.out,
     }
-    if s.trials:
+    thermal = thermal_wanted(s.thermal, problem)
+    if thermal:
+        from eaco_jax.gait.thermal_walk import thermal_walk
+
+        record["thermal"] = thermal_walk(
+            problem.replace(accuracy="accurate") if s.accurate else problem, vec,
+            n=int(s.trials), seed=built.extra["seed"], stream=s.stream)
+    elif s.trials:
         from eaco_jax.gait.validate import evaluate_trials
 
         record["trials"] = evaluate_trials(problem, vec, n=int(s.trials), accurate=s.accurate,
@@ -635,9 +646,83 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
         files = write_trajectory_outputs(
             folder, problem, sim, video_wanted(s.video),
             title=f"{problem.spec.name}: {Path(s.params_file).name}, {sim['speed_mps']:.2f} m/s")
+        if thermal:
+            files["temperatures"] = str(temperature_plot(
+                record["thermal"], folder / "temperatures.png",
+                title=f"{problem.spec.name}: {Path(s.params_file).name}"))
         record["files"] = {"eval": str(folder / "gait_eval.json"), **files}
         write_json(folder / "gait_eval.json", record)
     return record
+
+
+THERMAL_MIN_HORIZON = 60.0
+"""gait-eval integrates the motors' temperatures by default from this horizon (s) on."""
+
+
+def thermal_wanted(thermal: bool | None, problem: Any) -> bool:
+    """Whether gait-eval runs the thermal walk: as asked, else for a horizon of at least
+    :data:`THERMAL_MIN_HORIZON` on a robot with electrical motor data."""
+    from eaco_jax.gait.motors import motor_model
+
+    has = motor_model(problem.spec) is not None
+    if thermal and not has:
+        raise ProblemError(f"robot {problem.spec.name!r} has no electrical motor data: no "
+                           "thermal walk (drop --thermal)")
+    if thermal is None:
+        return has and problem.horizon >= THERMAL_MIN_HORIZON
+    return bool(thermal)
+
+
+def temperature_plot(rec: dict[str, Any], path: Path, title: str) -> Path:
+    """Winding temperature of each leg joint (the hotter of left and right, the hottest world)
+    against time, with the firmware limit: ``temperatures.png``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from eaco_jax.gait.thermal_walk import LEG_ROLES
+
+    t = np.asarray(rec["trace"]["t_s"]) / 60.0
+    fig, ax = plt.subplots(figsize=(7.0, 3.6))
+    wind = rec["trace"]["winding_c"]
+    for role in LEG_ROLES:
+        rows = [np.asarray(v) for k, v in wind.items() if k.endswith(role)]
+        if rows:
+            ax.plot(t, np.max(rows, axis=0), lw=1.3, label=role)
+    ax.axhline(rec["firmware_limit_c"], color="k", ls="--", lw=1.0, label="firmware limit")
+    ax.set_xlabel("time walking [min]")
+    ax.set_ylabel("winding [C]")
+    where = "nominal world" if rec["worlds"] == 1 else (
+        f"hottest of {rec['worlds']} {rec['stream']}-stream worlds")
+    ax.set_title(f"{title} ({where})", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def thermal_line(rec: dict[str, Any]) -> str:
+    """``thermal (N worlds, stream, H s): ...`` of a thermal-walk record."""
+    from eaco_jax.gait.thermal_walk import leg_table
+
+    legs = leg_table(rec)
+    hot = max(legs, key=lambda k: legs[k]["winding_end_c"]) if legs else None
+    limit = (f"firmware limit {rec['firmware_limit_c']:.0f} C reached after "
+             f"{rec['first_limit_s']:.0f} s in {rec['worlds_reaching_limit']} world(s)"
+             if rec["limit_reached"] else
+             f"no winding reaches the firmware limit {rec['firmware_limit_c']:.0f} C")
+    worst = (f"; hottest leg joint {hot} {legs[hot]['winding_end_c']:.0f} C at the end"
+             if hot else "")
+    lo, hi = rec["fall_rate_ci95"]
+    return (f"thermal ({rec['worlds']} {rec['stream']} world{'s' if rec['worlds'] != 1 else ''}"
+            f", {rec['horizon_s']:g} s): {limit}{worst}; {rec['falls']} falls (95% CI "
+            f"{100 * lo:.2g}-{100 * hi:.2g}%), {rec['speed_mps_mean']:.3f} m/s, peak current "
+            f"{rec['peak_current_max_frac']:.2f} x limit, slip {rec['slip_per_m_max']:.3f} m/m, "
+            f"drift {rec['drift_deg_max']:.1f} deg")
 
 
 def trials_line(trials: dict[str, Any]) -> str:
@@ -709,12 +794,14 @@ def summary(record: dict[str, Any]) -> str:
         from eaco_jax.gait.quality import envelope_table
 
         lines.append(envelope_table(record["envelope"]))
-    if "motors" in q:
+    if "motors" in q and not record.get("thermal"):  # the thermal walk's figures supersede
         lines.append(motors_line(q))
     if record.get("constraints"):
         lines.append(constraints_line(record["constraints"]))
     if record.get("trials"):
         lines.append(trials_line(record["trials"]))
+    if record.get("thermal"):
+        lines.append(thermal_line(record["thermal"]))
     if record.get("export"):
         lines.append(f"export: wrote {record['export']}")
     return "\n".join(lines)
