@@ -65,7 +65,8 @@ def thermal_walk(problem: Any, params: Any, n: int = 0, seed: int = 0, stream: s
         nominal = nominal * worlds.stall_scale
     q = ql.finalize(jax.tree.map(jnp.asarray, out["acc"]), res["distance_m"], mass,
                     float(model.opt.timestep), nominal, mm)
-    return _record(problem, q, res, r, every, stream if n else "nominal", seed, mm)
+    rec = _record(problem, q, res, r, every, stream if n else "nominal", seed, mm)
+    return rec | {"legs": leg_table(rec)}
 
 
 def _rollout(problem: Any, controls: jax.Array, worlds, every: int) -> dict:
