@@ -10,6 +10,11 @@ the colony passes its best tour so far), in O(1): each ant keeps its unvisited c
 doubly linked list in the reference tour's order, and a visited city's ``next`` entry still
 names the first unvisited city after it until the ant's next move.
 
+Focused construction (Focused ACO's idea, ``max_new_edges``): once an ant has added that many
+edges that are not edges of the reference tour, it stops choosing and follows the reference
+tour's order for the rest (the fallback rule for every remaining step), so each tour differs
+from the reference in a bounded number of places and the local search has little to repair.
+
 Memory per construction: the tabu mask (1 byte), the two list arrays (8 bytes) and the path
 (4 bytes) per ant and city, and the (R, k) choice information.
 """
@@ -50,6 +55,7 @@ def construct_tours_sparse(
     q0: Array | float = 0.0,
     row_offset: Array | None = None,
     factor: Array | None = None,
+    max_new_edges: int | None = None,
 ) -> Array:
     """Build one tour per ant on candidate lists.
 
@@ -63,6 +69,7 @@ def construct_tours_sparse(
       q0: probability of the greedy choice, scalar or (m,).
       row_offset: (m,) multiples of n (default 0).
       factor: optional (m, n) multiplicative perturbation of the weights (chaos).
+      max_new_edges: focused construction (module docstring); None: choose at every step.
 
     Returns:
       (m, n) int32 tours starting at ``starts``.
@@ -86,19 +93,24 @@ def construct_tours_sparse(
     uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
 
     def step(carry, u):
-        current, alive, nxt_l, prv_l = carry
+        current, alive, nxt_l, prv_l, new = carry
         row = row_offset + current
         cand = cands[current]
         w = jnp.where(alive.reshape(-1)[ant_base + cand], cand_w[row], 0.0)  # (m, k)
         w = w if factor is None else w * factor.reshape(-1)[ant_base + cand]
         c, ok = _sample(w, u, q0)
         nxt = jnp.take_along_axis(cand, c[:, None], axis=1)[:, 0]
+        if max_new_edges is not None:  # done changing the reference: follow it
+            ok = ok & (new < max_new_edges)
         nxt = jnp.where(ok, nxt, nxt_l[every, current])  # every candidate tabu: follow ref
+        if max_new_edges is not None:
+            new = new + ((nxt != succ[current]) & (nxt != pred[current])).astype(jnp.int32)
         nxt_l, prv_l = _unlink(nxt_l, prv_l, every, nxt)
         alive = alive.at[every, nxt].set(False, unique_indices=True)
-        return (nxt, alive, nxt_l, prv_l), nxt
+        return (nxt, alive, nxt_l, prv_l, new), nxt
 
-    _, path = jax.lax.scan(step, (starts, alive, nxt_l, prv_l), uniforms, unroll=UNROLL)
+    carry = (starts, alive, nxt_l, prv_l, jnp.zeros((m,), jnp.int32))
+    _, path = jax.lax.scan(step, carry, uniforms, unroll=UNROLL)
     return jnp.concatenate([starts[:, None], path.T], axis=1)
 
 

@@ -31,6 +31,14 @@ import numpy as np
 from flax import struct
 
 from eaco_jax.problems.base import ProblemError
+from eaco_jax.problems.tsp_exact import (  # noqa: F401 - re-exported
+    INT32_SUM_LIMIT,
+    WIDE_SUM_MAX_CITIES,
+    exact_int_sum,
+    integer_lengths,
+    validate_tour,
+    words_needed,
+)
 from eaco_jax.problems.tsplib import COORD_TYPES, coord_distances, distance_matrix, read_tsplib
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "tsplib"
@@ -57,42 +65,6 @@ def nearest_neighbors(dist: np.ndarray, k: int) -> np.ndarray:
         raise ProblemError(f"neighbors must be >= 1, got {k}")
     np.fill_diagonal(d, np.inf)
     return np.argsort(d, axis=1, kind="stable")[:, :k].astype(np.int32)
-
-
-#: integer tour lengths below this are summed in one int32 word inside a run; a matrix whose
-#: tours can reach it is summed in two (:func:`exact_int_sum`)
-INT32_SUM_LIMIT = 2**31 - 1
-#: :func:`exact_int_sum` holds the sums of n 12-bit halves in int32: at most this many cities
-WIDE_SUM_MAX_CITIES = (2**31 - 1) // 4095
-
-
-def exact_int_sum(edges: jax.Array) -> jax.Array:
-    """float32 of the exact sum over the last axis of int32 ``edges`` (each in [0, 2**24)).
-
-    Each edge splits at bit 12 into a high and a low half; both halves sum exactly in int32
-    (fewer than :data:`WIDE_SUM_MAX_CITIES` terms), the low sum's carry moves to the high sum,
-    and ``high * 4096 + low`` rounds once to float32. Exact to 2**36 before that rounding, and
-    monotone beyond (the low part is then below half a float32 step), so two tours never
-    compare in the wrong order; two int32 sums instead of one, with no 64-bit integers (JAX
-    runs without x64 here).
-    """
-    hi = jnp.sum(edges >> 12, axis=-1, dtype=jnp.int32)
-    lo = jnp.sum(edges & 4095, axis=-1, dtype=jnp.int32)
-    hi = hi + (lo >> 12)
-    return hi.astype(jnp.float32) * 4096.0 + (lo & 4095).astype(jnp.float32)
-
-
-def words_needed(longest: float, n: int) -> int:
-    """int32 words an integer tour length needs inside a run: 1 while no tour can reach
-    2**31 (``longest`` bounds every tour), else 2; refuses more cities than 2 words hold."""
-    if longest <= INT32_SUM_LIMIT:
-        return 1
-    if n > WIDE_SUM_MAX_CITIES:
-        raise ProblemError(
-            f"{n} cities of integer distances: tour lengths up to {longest:.0f} need more "
-            f"than the {WIDE_SUM_MAX_CITIES:,} cities that two int32 words sum exactly; "
-            "use at most that many cities")
-    return 2
 
 
 def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool, int]:
@@ -123,14 +95,6 @@ def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool, int]:
     if not integer and longest > 1e37:
         raise ProblemError("distances are too large for float32 sums; rescale the matrix")
     return d, integer, words_needed(longest, d.shape[0]) if integer else 1
-
-
-def integer_lengths(edges: jax.Array, words: int) -> jax.Array:
-    """float32 tour lengths from int32 ``edges`` (..., n): one exact int32 sum (``words=1``,
-    every tour below 2**31) or :func:`exact_int_sum`, each rounded once."""
-    if words == 1:
-        return edges.sum(-1).astype(jnp.float32)
-    return exact_int_sum(edges)
 
 
 @functools.partial(jax.jit, static_argnames=("integer", "words"))
@@ -349,25 +313,6 @@ def nearest_neighbour_tour(dist: np.ndarray, start: int = 0) -> np.ndarray:
     if not 0 <= int(start) < n:
         raise ProblemError(f"start city {start} outside 0..{n - 1}")
     return np.asarray(_nn_tour(jnp.asarray(d, jnp.float32), jnp.int32(start)))
-
-
-def validate_tour(tour: np.ndarray, n: int) -> np.ndarray:
-    """Check that ``tour`` is a permutation of ``0..n-1``; return it as int64, else raise."""
-    t = np.asarray(tour)
-    if t.shape != (n,):
-        raise ProblemError(f"a tour must have shape ({n},), got {t.shape}")
-    if not np.issubdtype(t.dtype, np.integer):
-        if not np.all(np.isfinite(t)) or np.any(t != np.round(t)):
-            raise ProblemError("a tour must hold integer city ids")
-    t = t.astype(np.int64)
-    if t.min() < 0 or t.max() >= n:
-        raise ProblemError(f"tour has city ids outside 0..{n - 1}")
-    counts = np.bincount(t, minlength=n)
-    if np.any(counts != 1):
-        missing = np.flatnonzero(counts == 0)[:5].tolist()
-        twice = np.flatnonzero(counts > 1)[:5].tolist()
-        raise ProblemError(f"tour is not a permutation: repeated {twice}, missing {missing}")
-    return t
 
 
 def tour_length(dist: np.ndarray, tour: np.ndarray) -> int:

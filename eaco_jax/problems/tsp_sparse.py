@@ -15,7 +15,7 @@ them). Non-integer coordinates are computed in float32 (an edge may then differ 
 from the float64 TSPLIB value where its length lies within a float32 rounding of a rounding
 boundary); the lengths :func:`~eaco_jax.minimize` reports are always recomputed on the host in
 float64 / int64 (:meth:`SparseTSP.exact_length`). Tour lengths inside a run are exact integer
-sums as on the dense path (:func:`~eaco_jax.problems.tsp.integer_lengths`).
+sums as on the dense path (:func:`~eaco_jax.problems.tsp_exact.integer_lengths`).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import numpy as np
 from flax import struct
 
 from eaco_jax.problems.base import ProblemError
-from eaco_jax.problems.tsp import integer_lengths, validate_tour, words_needed
+from eaco_jax.problems.tsp_exact import integer_lengths, validate_tour, words_needed
 from eaco_jax.problems.tsplib import pair_distances
 
 #: metrics the sparse path computes from coordinates (GEO's trigonometry is left to the dense
@@ -185,7 +185,8 @@ class SparseTSP:
       metric: a TSPLIB metric of :data:`SPARSE_METRICS` ("EUCLIDEAN": unrounded).
       exact: integer coordinates, distances computed exactly (module docstring).
       integer: distances are integers (every TSPLIB metric).
-      sum_words: int32 words of in-run tour sums (:func:`~eaco_jax.problems.tsp.words_needed`).
+      sum_words: int32 words of in-run tour sums
+        (:func:`~eaco_jax.problems.tsp_exact.words_needed`).
     """
 
     coords: jax.Array

@@ -157,12 +157,21 @@ class TspSettings:
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
     max_seconds: float | None = setting(None, "stop after this many compute seconds")
+    sparse: str = setting("auto", "distance matrix or not: on (coordinates, candidate lists "
+                          "and trails on candidate edges only, memory O(n k)), off (n x n "
+                          "matrices), auto (on from 8,000 cities for EUC_2D, CEIL_2D, ATT)",
+                          choices=("auto", "on", "off"))
+    neighbors: int | None = setting(None, "candidate-list length per city (default 20 with a "
+                                    "distance matrix, 16 without)")
+    max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
+                                        "ant adds at most this many edges not in the best "
+                                        "tour, then follows it (default: full construction)")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
         check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
-                       "ls_neighbors")
+                       "ls_neighbors", "neighbors", "max_new_edges")
 
 
 def colony_defaults(n: int, backend: str, seconds: float | None = None) -> ColonyDefaults:
@@ -190,7 +199,8 @@ def build(s: TspSettings) -> Built:
     from eaco_jax.problems.tsp import load_tsplib
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
-    problem = load_tsplib(s.instance)
+    sparse = {"auto": None, "on": True, "off": False}[s.sparse]
+    problem = load_tsplib(s.instance, neighbors=s.neighbors, sparse=sparse)
     auto = colony_defaults(int(problem.n), jax.default_backend(), s.max_seconds)
     ants = auto.ants if s.ants is None else int(s.ants)
     ls_neighbors = auto.ls_neighbors if s.ls_neighbors is None else int(s.ls_neighbors)
@@ -199,7 +209,7 @@ def build(s: TspSettings) -> Built:
     preset = auto.preset if s.preset == "auto" else s.preset
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
-                         mutation=s.mutation, preset=preset)
+                         mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges)
     params = params_from(strategy, problem, s.params)
     budget = budget_of(s, s.iterations, {"iterations": ITERATIONS})
     return Built(problem, strategy, params, budget)
@@ -230,7 +240,7 @@ def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
 def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) -> dict[str, Any]:
     """Solve the instance; returns the JSON record and writes ``s.out`` if set."""
     from eaco_jax.driver.minimize import minimize
-    from eaco_jax.problems.tsp import tour_length
+    from eaco_jax.problems.tsp_sparse import is_sparse
 
     check_out(s.out)
     built = build(s)
@@ -240,7 +250,9 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
                           checkpointing=checkpointing, params=built.params, **built.budget)
     problem = built.problem
     tour = np.asarray(result.best_solution, dtype=np.int64)
-    length = int(tour_length(np.asarray(problem.dist), tour))
+    length = int(problem.exact_length(tour))
+    rows = int(np.asarray(result.best_cost).size)
+    tours = int(built.strategy.num_ants) * int(result.iterations) * rows
     record: dict[str, Any] = {
         "instance": problem.name,
         "n": int(problem.n),
@@ -260,6 +272,10 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
         "seconds": float(result.seconds),
         "compile_seconds": float(result.compile_seconds),
         "seconds_per_iteration": float(result.seconds_per_iteration),
+        "sparse": is_sparse(problem),
+        "neighbors": int(problem.neighbors.shape[1]),
+        "tours_per_second": tours / float(result.seconds) if result.seconds > 0 else None,
+        **peak_memory(),
         "history_best": np.asarray(result.history["best_cost"]).tolist(),
     }
     if problem.optimum is not None:
@@ -267,6 +283,25 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
     if s.out is not None:
         write_outputs(Path(s.out), record, result.history, s.instance)
     return record
+
+
+def peak_memory() -> dict[str, int | None]:
+    """This process's peak host memory (resident set, bytes) and the default device's peak
+    bytes in use where its backend reports them (GPUs do; None elsewhere)."""
+    import resource
+    import sys
+
+    import jax
+
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    rss *= 1 if sys.platform == "darwin" else 1024  # bytes on macOS, KiB on Linux
+    device = None
+    try:
+        stats = jax.devices()[0].memory_stats() or {}
+        device = int(stats["peak_bytes_in_use"]) if "peak_bytes_in_use" in stats else None
+    except Exception:  # noqa: BLE001 - memory_stats is optional per backend
+        device = None
+    return {"peak_host_bytes": int(rss), "peak_device_bytes": device}
 
 
 def instance_coords(instance: str) -> np.ndarray | None:
@@ -302,7 +337,13 @@ def summary(record: dict[str, Any]) -> str:
     return (f"{record['instance']}: best length {record['best_length']}"
             + (f" (optimum {record['optimum']:g}, gap {gap:.2f}%)" if gap is not None else "")
             + f" in {record['iterations']} iterations, {record['seconds']:.1f} s"
-            + (f", stopped by {record['stop_reason']}" if record.get("stop_reason") else ""))
+            + (f", stopped by {record['stop_reason']}" if record.get("stop_reason") else "")
+            + (f"; {record['tours_per_second']:,.0f} tours/s"
+               if record.get("tours_per_second") else "")
+            + (f", peak memory {record['peak_host_bytes'] / 2**20:,.0f} MiB host"
+               if record.get("peak_host_bytes") else "")
+            + (f", {record['peak_device_bytes'] / 2**20:,.0f} MiB device"
+               if record.get("peak_device_bytes") else ""))
 
 
 KIND = RunKind("tsp", TspSettings, build, run, row_metrics, summary)

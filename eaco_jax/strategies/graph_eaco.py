@@ -244,6 +244,9 @@ class GraphEACO(Strategy):
     #: sparse problems: start from a Hilbert-curve tour polished by the local search (the
     #: first iteration's ant 0 and the fallback's first reference); None: on for them
     seed_tour: bool | None = None
+    #: sparse problems: Focused ACO's construction, each ant adds at most this many edges
+    #: that are not in the best tour so far, then follows it (None: full construction)
+    max_new_edges: int | None = None
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -261,6 +264,8 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_best_k must be >= 1 or None, got {self.ls_best_k}")
         if self.ls_neighbors is not None and self.ls_neighbors < 1:
             raise ConfigError(f"ls_neighbors must be >= 1 or None, got {self.ls_neighbors}")
+        if self.max_new_edges is not None and self.max_new_edges < 1:
+            raise ConfigError(f"max_new_edges must be >= 1 or None, got {self.max_new_edges}")
         if self.ls_moves_per_step < 1:
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         for name, value, allowed in (
@@ -346,6 +351,9 @@ class GraphEACO(Strategy):
                 raise ConfigError("candidate_lists=False needs a distance matrix; the sparse "
                                   "path builds tours on the candidate lists")
             return problem
+        if self.max_new_edges is not None:
+            raise ConfigError("max_new_edges (focused construction) needs the sparse path "
+                              "(a problem without a distance matrix: sparse=True)")
         dist = getattr(problem, "dist", None)
         shape = getattr(dist, "shape", ())
         if len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3:
@@ -458,7 +466,7 @@ class GraphEACO(Strategy):
                 ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
                                 state.first_tour)
                 return construct_tours_sparse(k_build, stacked, problem.neighbors, starts, ref,
-                                              q0, offset, chaos_factor)
+                                              q0, offset, chaos_factor, self.max_new_edges)
             return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands,
                                    self.construction_fallback)
 
