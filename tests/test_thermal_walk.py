@@ -81,3 +81,18 @@ def test_thermal_walk_in_test_stream_worlds(walk):
     assert rec["worlds"] == 2 and rec["stream"] == "test" and rec["n"] == 2
     assert len(rec["trace"]["winding_c"]["LKneePitch"]) == 2
     assert 0 <= rec["falls"] <= 2
+
+
+@pytest.mark.slow  # compiles MJX's step with the worlds (about 2 min on 2 cores)
+def test_thermal_walk_backends_agree():
+    """The stored gait, 2 s, two test-stream worlds: the temperatures sampled inside MJX's scan
+    and on the native backend agree (the same losses, the same thermal steps)."""
+    import json
+
+    best = json.loads(open("experiments/results/nao_best_gait.json").read())["vector"]
+    recs = {b: thermal_walk(make_gait_problem("nao", backend=b, horizon=2.0), best, n=2,
+                            seed=5, sample_s=0.5) for b in ("mjx", "native")}
+    for name in ("RKneePitch", "LHipPitch", "RAnklePitch"):
+        np.testing.assert_allclose(recs["mjx"]["trace"]["winding_c"][name],
+                                   recs["native"]["trace"]["winding_c"][name], atol=0.2)
+    assert recs["mjx"]["falls"] == recs["native"]["falls"]
