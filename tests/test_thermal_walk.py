@@ -96,3 +96,15 @@ def test_thermal_walk_backends_agree():
         np.testing.assert_allclose(recs["mjx"]["trace"]["winding_c"][name],
                                    recs["native"]["trace"]["winding_c"][name], atol=0.2)
     assert recs["mjx"]["falls"] == recs["native"]["falls"]
+
+
+def test_thermal_needs_electrical_motor_data():
+    """--thermal on a robot without electrical motor data is one line naming the fix, before
+    any simulation."""
+    from eaco_jax.errors import ProblemError
+    from eaco_jax.runs.gait import GaitEvalSettings, run_eval
+
+    s = GaitEvalSettings(params_file="experiments/results/go2_cpu_gait.json", thermal=True,
+                         horizon=1.0, backend="native")
+    with pytest.raises(ProblemError, match="drop --thermal"):
+        run_eval(s)

@@ -612,6 +612,7 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
     check_out(s.out)
     built = build_eval(s)
     problem, vec = built.problem, built.extra["vector"]
+    thermal = thermal_wanted(s.thermal, problem)  # refuses before any simulation
     t0 = time.perf_counter()
     sim = problem.simulate(vec, record=s.out is not None)
     record: dict[str, Any] = {
@@ -623,7 +624,6 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
         "seconds": time.perf_counter() - t0,
         "out": s.out,
     }
-    thermal = thermal_wanted(s.thermal, problem)
     if thermal:
         from eaco_jax.gait.thermal_walk import thermal_walk
 
