@@ -159,7 +159,9 @@ def test_trials_and_export_are_printed(gait_runs, tmp_path):
     lo, hi = falls_interval(t["falls"], 3)
     assert t["fall_rate_ci95"] == pytest.approx([lo, hi])
     lines = res_a.stdout.strip().splitlines()
-    assert lines[-3].startswith("nao (native, 0.5 s): speed ")
+    first = next(i for i, line in enumerate(lines)
+                 if line.startswith("nao (native, 0.5 s): speed "))
+    assert lines[first + 1].startswith("actuator envelope (motor data: ")
     assert lines[-2].startswith("motors: ")
     assert lines[-1].startswith(
         f"trials (test stream): 3 worlds, {t['falls']} fall{'' if t['falls'] == 1 else 's'} "
