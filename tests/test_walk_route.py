@@ -4,6 +4,7 @@ controller's choices, and a short real walk on native MuJoCo (issue #32, item 4)
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import mujoco
@@ -110,22 +111,65 @@ def test_obstacle_distance_finds_a_contact(nao):
 # --------------------------------------------------------------------------- controller
 def test_choose_turns_on_the_spot_for_a_large_error_and_steers_a_small_one():
     c = wr.Controller(turn_deg=20.0, resume_deg=8.0, steer_gain=1.0)
-    assert wr.choose(math.radians(40), wr.FORWARD, c) == (wr.LEFT, 0.0)
-    assert wr.choose(math.radians(-40), wr.FORWARD, c) == (wr.RIGHT, 0.0)
-    mode, steer = wr.choose(math.radians(10), wr.FORWARD, c)
-    assert mode == wr.FORWARD and steer == pytest.approx(math.radians(10))
-    mode, steer = wr.choose(math.radians(-10), wr.FORWARD, c)
-    assert mode == wr.FORWARD and steer == pytest.approx(-math.radians(10))
+    assert wr.choose(math.radians(40), wr.FORWARD, c) == wr.Choice(wr.LEFT)
+    assert wr.choose(math.radians(-40), wr.FORWARD, c) == wr.Choice(wr.RIGHT)
+    ch = wr.choose(math.radians(10), wr.FORWARD, c)
+    assert ch.mode == wr.FORWARD and ch.steer == pytest.approx(math.radians(10))
+    ch = wr.choose(math.radians(-10), wr.FORWARD, c)
+    assert ch.mode == wr.FORWARD and ch.steer == pytest.approx(-math.radians(10))
     # hysteresis: a turn goes on until the error is below resume_deg
-    assert wr.choose(math.radians(10), wr.LEFT, c)[0] == wr.LEFT
-    assert wr.choose(math.radians(5), wr.LEFT, c)[0] == wr.FORWARD
+    assert wr.choose(math.radians(10), wr.LEFT, c).mode == wr.LEFT
+    assert wr.choose(math.radians(5), wr.LEFT, c).mode == wr.FORWARD
     # an overshoot hands a turn to the forward gait (steering back), not to the opposite turn
-    mode, steer = wr.choose(math.radians(-30), wr.LEFT, c)
-    assert mode == wr.FORWARD and steer < 0
-    assert wr.choose(math.radians(30), wr.RIGHT, c)[0] == wr.FORWARD
-    # the steering is clipped to the walk engine's turn-rate bound
-    assert wr.choose(math.radians(12), wr.FORWARD, wr.Controller(steer_gain=5.0))[1] == \
-        pytest.approx(0.3)
+    ch = wr.choose(math.radians(-30), wr.LEFT, c)
+    assert ch.mode == wr.FORWARD and ch.steer < 0
+    assert wr.choose(math.radians(30), wr.RIGHT, c).mode == wr.FORWARD
+    # the steering is clipped to max_steer
+    assert wr.choose(math.radians(12), wr.FORWARD,
+                     wr.Controller(steer_gain=5.0, max_steer=0.7)).steer == pytest.approx(0.7)
+
+
+def test_default_controller_takes_corners_on_arcs_that_tighten_with_the_error():
+    c = wr.Controller(slow_deg=15.0, stop_deg=45.0, min_step=0.4)
+    assert wr.Controller().turn_deg == 180.0  # never on the spot by default
+    for deg in (-170.0, -90.0, 90.0, 170.0):
+        assert wr.choose(math.radians(deg), wr.FORWARD, wr.Controller()).mode == wr.FORWARD
+    assert wr.choose(math.radians(10), wr.FORWARD, c).step == 1.0  # below slow_deg: full step
+    assert wr.choose(math.radians(-30), wr.FORWARD, c).step == pytest.approx(0.7)  # halfway
+    assert wr.choose(math.radians(80), wr.FORWARD, c).step == pytest.approx(0.4)  # floor
+    g = wr.load_walk_gaits("nao")
+    p = wr.gait_params(g, wr.Choice(wr.FORWARD, -0.5, 0.4))
+    assert p[wr.STEP] == pytest.approx(0.4 * g.forward[wr.STEP]) and p[wr.TURN] == -0.5
+    others = [i for i in range(len(p)) if i not in (wr.STEP, wr.TURN)]
+    assert np.array_equal(p[others], g.forward[others])
+    assert np.array_equal(wr.gait_params(g, wr.Choice(wr.LEFT, 0.3, 0.5)), g.turn_left)
+
+
+def test_the_steered_forward_gait_turns_the_way_it_is_steered(nao):
+    """The physics behind the arcs: the stored forward gait with turn_rate +-0.6 rad/s and
+    its step at 0.5 turns the NAO by tens of degrees in 4 s, left for +, right for -."""
+    g = wr.load_walk_gaits("nao")
+    scene = _scene(start=(0.0, 0.0), goal=(3.0, 0.0), bounds=(-3.0, -3.0, 3.0, 3.0))
+    model = sw.scene_model(scene, nao)
+    turned = []
+    for steer in (0.6, -0.6):
+        params = wr.gait_params(g, wr.Choice(wr.FORWARD, steer, 0.5))
+        data = mujoco.MjData(model)
+        data.qpos[:] = sw.start_qpos(nao, model, (0.0, 0.0), 0.0)
+        data.ctrl[:] = nao.stand_ctrl
+        mujoco.mj_forward(model, data)
+        sub = int(round(nao.control_dt / model.opt.timestep))
+        n = int(4.0 / nao.control_dt)
+        times = np.arange(n) * nao.control_dt
+        targets = np.asarray(wr._targets_fn(nao)(
+            np.repeat(params[None], n, 0).astype(np.float32), times.astype(np.float32)))
+        for u in targets:
+            data.ctrl[:] = wr.couple_controls(u[None], nao, xp=np)[0]
+            for _ in range(sub):
+                mujoco.mj_step(model, data)
+        assert data.qpos[2] > nao.fall_height
+        turned.append(math.degrees(wr._yaw(data.qpos[3:7])))
+    assert turned[0] > 40.0 and turned[1] < -40.0
 
 
 def test_track_stays_on_the_segment_and_moves_on_at_its_end():
@@ -145,6 +189,12 @@ def test_track_stays_on_the_segment_and_moves_on_at_its_end():
 def test_bad_controller_settings_are_one_line():
     with pytest.raises(ConfigError, match="resume_deg"):
         wr.Controller(turn_deg=10.0, resume_deg=12.0)
+    with pytest.raises(ConfigError, match="turn_deg"):
+        wr.Controller(turn_deg=200.0)
+    with pytest.raises(ConfigError, match="slow_deg"):
+        wr.Controller(slow_deg=50.0, stop_deg=40.0)
+    with pytest.raises(ConfigError, match="min_step"):
+        wr.Controller(min_step=0.0)
     with pytest.raises(ConfigError, match="lookahead"):
         wr.Controller(lookahead=-1.0)
 
@@ -165,6 +215,42 @@ def test_library_turning_gaits_step_in_place(nao):
     assert g.turn_left[0] == 0.0 and g.turn_right[0] == 0.0
     assert g.turn_left[wr.TURN] > 0 > g.turn_right[wr.TURN]
     assert g.forward[0] > 0.05
+
+
+def test_walk_settings_default_to_the_controller_defaults():
+    import dataclasses
+
+    from eaco_jax.runs.walk import WalkSettings
+
+    assert WalkSettings().controller() == wr.Controller()
+    assert {f.name for f in dataclasses.fields(wr.Controller)} - {"goal_radius"} <= {
+        f.name for f in dataclasses.fields(WalkSettings)}
+
+
+def test_planning_prices_the_gait_librarys_walking_model():
+    from eaco_jax.problems.scenes import load_gait_speeds
+    from eaco_jax.runs.walk import planning_speeds
+
+    plan = wr.load_walk_gaits("nao").planning
+    walk, path = planning_speeds("walk", "nao"), planning_speeds("nao", "nao")
+    assert path == load_gait_speeds("nao")
+    assert float(walk.speed(0.0)) == pytest.approx(plan["speed_mps"])
+    assert walk.yaw_rate_deg_s == plan["yaw_rate_deg_s"]
+    ratio = plan["speed_mps"] / float(path.speed(0.0))  # slope rows keep their proportion
+    assert np.allclose(walk.speeds_mps, np.asarray(path.speeds_mps) * ratio)
+    assert walk.slopes_deg == path.slopes_deg
+
+
+def test_gait_library_planning_entry_is_checked(tmp_path):
+    import json
+
+    data = json.loads((Path(wr.__file__).parents[1] / "data" / "walk_gaits" / "nao.json")
+                      .read_text())
+    data["planning"] = {"speed_mps": 0.5, "yaw_rate_deg_s": -3.0}
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    with pytest.raises(ConfigError, match="planning needs"):
+        wr.load_walk_gaits(bad)
 
 
 # --------------------------------------------------------------------------- end to end

@@ -8,14 +8,15 @@ and a path-following controller steers it along the route's polyline, one step c
   the segment's end, so the robot does not cut the corner at a waypoint (the corners are the
   obstacles' corners grown by the clearance). A segment is done when the projection is within
   ``capture`` of its end.
-* **Gait choice** (:func:`choose`): where the heading error to the target exceeds
-  ``turn_deg`` the robot turns on the spot with the library's left or right turning gait (the
-  planner's model of a waypoint), until the error is below ``resume_deg`` or has changed sign
-  (an overshoot hands over to the forward gait, never to the opposite turn); otherwise it walks
-  with the forward gait whose ``turn_rate`` is the heading error times ``steer_gain``
-  (clipped to the walk engine's bound): heading control while walking.
-* **Gait switching**: a new choice is made at the start of each step cycle; the walk engine's
-  parameters then blend linearly from the old gait to the new one over ``blend_cycles`` cycles
+* **Gait choice** (:func:`choose`): the robot walks with the forward gait, steering with its
+  ``turn_rate`` = heading error x ``steer_gain`` (clamped to ``max_steer``) and shortening its
+  step length from full at ``slow_deg`` of heading error to ``min_step`` of it at
+  ``stop_deg``, so it takes a corner on an arc that tightens with the error, with no switch
+  of gait. Above ``turn_deg`` (by default 180: never) it would turn on the spot with the
+  library's left or right turning gait until the error is below ``resume_deg`` or has
+  changed sign (an overshoot hands over to the forward gait, never to the opposite turn).
+* **Gait changes**: a new choice is made at the start of each step cycle; the walk engine's
+  parameters then blend linearly from the old ones to the new over ``blend_cycles`` cycles
   while the gait phase runs on continuously (the engine is evaluated at the phase, not at the
   clock), so a switch never jumps the feet. The first ``RAMP_TIME`` seconds are the engine's
   start-up ramp of the first gait.
@@ -45,7 +46,7 @@ import numpy as np
 from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.gait import scene_world as sw
 from eaco_jax.gait.robot import RobotSpec
-from eaco_jax.gait.walk_engine import PARAM_NAMES, RAMP_TIME, UPPER, joint_targets
+from eaco_jax.gait.walk_engine import PARAM_NAMES, RAMP_TIME, joint_targets
 from eaco_jax.gait.worlds import (
     RobustConfig,
     Worlds,
@@ -60,6 +61,7 @@ FORWARD, LEFT, RIGHT = "forward", "turn_left", "turn_right"
 MODES = (FORWARD, LEFT, RIGHT)
 TURN = PARAM_NAMES.index("turn_rate")
 PERIOD = PARAM_NAMES.index("period")
+STEP = PARAM_NAMES.index("step_length")
 MAX_CYCLE_STEPS = 64
 """Control steps of the longest step cycle a chunk holds (the engine's period bound / dt)."""
 
@@ -73,6 +75,7 @@ class WalkGaits:
     turn_left: np.ndarray
     turn_right: np.ndarray
     source: str = ""
+    planning: dict[str, Any] | None = None  # speed_mps, yaw_rate_deg_s a planner should price
 
     def of(self, mode: str) -> np.ndarray:
         return np.asarray(getattr(self, mode), np.float64)
@@ -97,31 +100,66 @@ def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
         if v.shape != (len(PARAM_NAMES),) or not np.all(np.isfinite(v)):
             raise ConfigError(f"{path}: gaits.{m}.vector must be {len(PARAM_NAMES)} finite "
                               f"numbers ({', '.join(PARAM_NAMES)}), got shape {v.shape}")
-    return WalkGaits(vecs[FORWARD], vecs[LEFT], vecs[RIGHT], str(data.get("source", "")))
+    planning = data.get("planning")
+    if planning is not None:
+        try:
+            ok = all(float(planning[k]) > 0 for k in ("speed_mps", "yaw_rate_deg_s"))
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ConfigError(f"{path}: planning needs speed_mps and yaw_rate_deg_s > 0")
+    return WalkGaits(vecs[FORWARD], vecs[LEFT], vecs[RIGHT], str(data.get("source", "")),
+                     planning)
 
 
 # --------------------------------------------------------------------------- controller
 @dataclasses.dataclass(frozen=True)
 class Controller:
-    """Settings of the path-following controller (lengths in m, angles in deg)."""
+    """Settings of the path-following controller (lengths in m, angles in deg, rates in rad/s).
 
-    lookahead: float = 0.6
+    The defaults were chosen on tuning scenes and selection-stream worlds (claim
+    ``walk-controller-selection``), not on the scenes and worlds the walk is reported on.
+    """
+
+    lookahead: float = 0.9
     capture: float = 0.3
-    turn_deg: float = 20.0
-    resume_deg: float = 10.0
-    steer_gain: float = 0.6  # forward gait's turn_rate [rad/s] per rad of heading error
-    blend_cycles: float = 2.0
+    turn_deg: float = 180.0  # turn on the spot above this heading error (180: never)
+    resume_deg: float = 20.0  # ... until the error is below this
+    steer_gain: float = 1.0  # forward gait's turn_rate [rad/s] per rad of heading error
+    max_steer: float = 0.8  # clamp of the forward gait's turn_rate [rad/s]
+    slow_deg: float = 15.0  # the forward gait's step shortens above this heading error ...
+    stop_deg: float = 60.0  # ... to min_step of its length at this error and beyond
+    min_step: float = 0.35
+    blend_cycles: float = 0.5
     goal_radius: float = 0.15
 
     def __post_init__(self) -> None:
-        for name in ("lookahead", "capture", "turn_deg", "steer_gain", "blend_cycles",
-                     "goal_radius"):
+        for name in ("lookahead", "capture", "turn_deg", "steer_gain", "max_steer",
+                     "blend_cycles", "goal_radius"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"controller {name} must be a finite number > 0, got {v!r}")
+        if self.turn_deg > 180:
+            raise ConfigError(f"controller turn_deg must be <= 180 (180: never turn on the "
+                              f"spot), got {self.turn_deg}")
         if not 0 <= self.resume_deg < self.turn_deg:
             raise ConfigError(f"controller resume_deg must be in [0, turn_deg={self.turn_deg}),"
                               f" got {self.resume_deg}")
+        if not 0 <= self.slow_deg < self.stop_deg:
+            raise ConfigError(f"controller slow_deg must be in [0, stop_deg={self.stop_deg}), "
+                              f"got {self.slow_deg}")
+        if not 0 < self.min_step <= 1:
+            raise ConfigError(f"controller min_step must be in (0, 1], got {self.min_step}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Choice:
+    """One step cycle's gait: the mode, the forward gait's ``turn_rate`` [rad/s] and the
+    fraction of its step length (both unused while turning on the spot)."""
+
+    mode: str
+    steer: float = 0.0
+    step: float = 1.0
 
 
 def wrap(angle: float) -> float:
@@ -147,23 +185,38 @@ def track(route: np.ndarray, seg: int, pos: np.ndarray, ctrl: Controller) -> tup
         return seg, a + unit * min(length, max(along, 0.0) + ctrl.lookahead)
 
 
-def choose(error: float, mode: str, ctrl: Controller,
-           max_turn_rate: float = float(UPPER[TURN])) -> tuple[str, float]:
+def choose(error: float, mode: str, ctrl: Controller) -> Choice:
     """The gait for the next step cycle from the heading error [rad] (+: target to the left)
-    and the current mode: ``(mode, turn_rate)``; ``turn_rate`` is the forward gait's steering
-    (0 when turning on the spot). A turn that has overshot (the error changed sign) hands over
-    to the forward gait rather than to the opposite turn, so the turns do not chatter while
-    the blend out of a turn runs on."""
+    and the current mode.
+
+    Above ``turn_deg`` the robot turns on the spot, until the error is below ``resume_deg`` or
+    has changed sign (an overshoot hands over to the forward gait, never to the opposite
+    turn). Otherwise it walks with the forward gait, steering with ``turn_rate`` = error x
+    ``steer_gain`` clamped to ``max_steer``, its step length shortened linearly from full at
+    ``slow_deg`` to ``min_step`` at ``stop_deg``: it takes a corner on an arc that tightens
+    with the error, without switching gaits."""
     big = math.radians(ctrl.turn_deg)
     small = math.radians(ctrl.resume_deg)
     turning = mode in (LEFT, RIGHT)
     overshot = (mode == LEFT and error < 0) or (mode == RIGHT and error > 0)
     if turning and not overshot and abs(error) > small:
-        return mode, 0.0
+        return Choice(mode)
     if abs(error) > big and not overshot:
-        return (LEFT if error > 0 else RIGHT), 0.0
-    steer = max(-max_turn_rate, min(max_turn_rate, ctrl.steer_gain * error))
-    return FORWARD, steer
+        return Choice(LEFT if error > 0 else RIGHT)
+    steer = max(-ctrl.max_steer, min(ctrl.max_steer, ctrl.steer_gain * error))
+    u = (math.degrees(abs(error)) - ctrl.slow_deg) / (ctrl.stop_deg - ctrl.slow_deg)
+    step = 1.0 - (1.0 - ctrl.min_step) * min(1.0, max(0.0, u))
+    return Choice(FORWARD, steer, step)
+
+
+def gait_params(gaits: WalkGaits, choice: Choice) -> np.ndarray:
+    """The walk-engine parameters of a choice: a library gait, the forward one steered and
+    its step length scaled."""
+    params = gaits.of(choice.mode).copy()
+    if choice.mode == FORWARD:
+        params[TURN] = choice.steer
+        params[STEP] *= choice.step
+    return params
 
 
 # --------------------------------------------------------------------------- engine
@@ -282,7 +335,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
     ``model``: the scene's model (:func:`~eaco_jax.gait.scene_world.scene_model` with the robot
     facing :func:`start_heading`), built if not given; ``world`` one randomised world's inputs.
     The trajectory keeps every ``record_every``-th control step; ``decisions``, if a list,
-    receives ``(t, segment, heading error, mode, steer)`` at every step cycle.
+    receives ``(t, segment, heading error, mode, steer, step)`` at every step cycle.
     """
     ctrl = ctrl or Controller()
     route = np.asarray(route, np.float64)
@@ -313,7 +366,8 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
     goal = np.asarray(route[-1], np.float64)
     cos_tilt = math.cos(math.radians(spec.fall_tilt_deg))
 
-    mode, steer, seg = FORWARD, 0.0, 0
+    mode, seg = FORWARD, 0
+    last = Choice(FORWARD)
     p_old = p_new = None
     phase, alpha = 0.0, 1.0
     chunk: np.ndarray | None = None
@@ -335,13 +389,12 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
             if np.linalg.norm(goal - pos) < ctrl.lookahead and seg == len(route) - 2:
                 target = goal
             error = wrap(math.atan2(target[1] - pos[1], target[0] - pos[0]) - yaw)
-            new_mode, steer = choose(error, mode, ctrl)
+            choice = choose(error, mode, ctrl)
             if k * dt < RAMP_TIME and p_new is not None:
-                new_mode, steer = mode, float(p_new[TURN])  # no switch during the start-up
-            params = gaits.of(new_mode)
-            if new_mode == FORWARD:
-                params = params.copy()
-                params[TURN] = steer
+                choice = last  # no switch during the start-up
+            last = choice
+            new_mode = choice.mode
+            params = gait_params(gaits, choice)
             if p_new is None:
                 p_old = p_new = params
             else:
@@ -349,7 +402,8 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
                 p_new = params
                 alpha = 0.0
             if decisions is not None:
-                decisions.append((round(k * dt, 3), seg, error, new_mode, steer))
+                decisions.append((round(k * dt, 3), seg, error, new_mode, choice.steer,
+                                  choice.step))
             switches += int(new_mode != mode)
             mode = new_mode
             chunk, phase, alpha = _cycle(p_old, p_new, alpha, phase, k, dt,
@@ -456,6 +510,6 @@ def _length(xy: np.ndarray) -> float:
     return float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))) if len(xy) > 1 else 0.0
 
 
-__all__ = ["FORWARD", "LEFT", "MODES", "RIGHT", "Controller", "WalkGaits", "WorldInputs",
-           "choose", "ground_height", "load_walk_gaits", "polygon_distance",
+__all__ = ["FORWARD", "LEFT", "MODES", "RIGHT", "Choice", "Controller", "WalkGaits", "WorldInputs",
+           "choose", "gait_params", "ground_height", "load_walk_gaits", "polygon_distance",
            "sample_walk_worlds", "start_heading", "track", "walk", "wrap"]
