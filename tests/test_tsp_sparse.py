@@ -309,3 +309,21 @@ def test_focused_construction_changes_few_edges_of_the_reference():
         new = sum(frozenset(e) not in ref_edges for e in zip(t, np.roll(t, -1), strict=True))
         assert new <= 2 * 5 + 2
     np.testing.assert_array_equal(build(400), build(None))  # a cap never reached
+
+
+@pytest.mark.parametrize("cap", [None, 3])
+def test_kernel_builds_the_scan_tours(cap):
+    """The sparse construction as one Pallas kernel (here in Pallas' interpreter; compiled on
+    a GPU): the same tours as the scan, with padded ants (21 of a block of 32), the stacked
+    greedy row, a chaos factor and the focused limit."""
+    rng = np.random.default_rng(9)
+    p = SparseTSP.from_coords(rng.integers(0, 10_000, (70, 2)), neighbors=4)
+    cand_w = jnp.asarray(rng.uniform(0.1, 1.0, (140, 4)), jnp.float32)
+    ref = hilbert_tour(p.coords)
+    starts = jnp.asarray(rng.integers(0, 70, 21), jnp.int32)
+    offset = jnp.asarray(np.r_[np.zeros(20), [70]], jnp.int32)
+    factor = jnp.asarray(rng.uniform(0.5, 1.5, (21, 70)), jnp.float32)
+    for q0, fac in ((0.0, None), (0.3, factor)):
+        args = (jax.random.key(0), cand_w, p.neighbors, starts, ref, q0, offset, fac, cap)
+        np.testing.assert_array_equal(construct_tours_sparse(*args, plan="kernel"),
+                                      construct_tours_sparse(*args))

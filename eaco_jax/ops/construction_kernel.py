@@ -222,3 +222,146 @@ def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: A
         **extra,
     )(*args)
     return path.reshape(n, m_pad)[:, :m].T
+
+
+def _sparse_kernel(*refs, n: int, k: int, words: int, has_factor: bool, block: int,
+                   m_pad: int, cap: int | None):
+    """The kernel of :func:`construct_tours_sparse_kernel`: :func:`_kernel`'s candidate step,
+    and where every candidate is tabu (or an ant has added ``cap`` new edges) the next city of
+    the ant's linked list in reference-tour order, for all pending ants at once (no serial
+    fallback: the list answers in O(1))."""
+    it = iter(refs)
+    start_ref, offset_ref, q0_ref, u_ref, cand_ref, cw_ref = (next(it) for _ in range(6))
+    succ_ref = pred_ref = factor_ref = None
+    if cap is not None:
+        succ_ref, pred_ref = next(it), next(it)
+    if has_factor:
+        factor_ref = next(it)
+    for _ in range(3):  # the aliased inputs of the outputs below
+        next(it)
+    path_ref, bits_ref, nxt_ref, prv_ref = (next(it) for _ in range(4))
+
+    first_ant = pl.program_id(0) * block
+    ants = first_ant + jnp.arange(block, dtype=jnp.int32)
+    word_base = ants * words
+    list_base = ants * n
+    offset = offset_ref[ants]
+    q0 = q0_ref[ants]
+    cand_bits = id_bits(k)
+    start = start_ref[ants]
+    path_ref[ants] = start
+
+    def step(pos, carry):
+        current, new = carry
+        row = offset + current
+        u = u_ref[(pos - 1) * m_pad + ants]
+        nodes, weights, cums = [], [], []
+        best_key = jnp.zeros((block,), jnp.int32)
+        total = jnp.zeros((block,), jnp.float32)
+        for j in range(k):
+            node = cand_ref[row * k + j]
+            w = jnp.where(bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
+            if has_factor:
+                w = w * factor_ref[ants * n + node]
+            best_key = jnp.maximum(best_key, packed_keys(w, jnp.int32(j), cand_bits))
+            total = total + w
+            nodes.append(node)
+            weights.append(w)
+            cums.append(total)
+        ok = (best_key >> cand_bits) > 0
+        if cap is not None:
+            ok = ok & (new < cap)
+        greedy = best_key & ((1 << cand_bits) - 1)
+        v = (u - q0) / jnp.maximum(1.0 - q0, 1e-12)
+        target = jnp.maximum(v * total, jnp.finfo(jnp.float32).tiny)
+        sampled = jnp.zeros((block,), jnp.int32)
+        for c in cums:
+            sampled = sampled + (c < target).astype(jnp.int32)
+        sampled = jnp.minimum(sampled, k - 1)
+        hit = jnp.zeros((block,), jnp.float32)
+        for j in range(k):
+            hit = jnp.where(sampled == j, weights[j], hit)
+        choice = jnp.where((u < q0) | ~(hit > 0), greedy, sampled)
+        nxt = jnp.zeros((block,), jnp.int32)
+        for j in range(k):
+            nxt = jnp.where(choice == j, nodes[j], nxt)
+        nxt = jnp.where(ok, nxt, nxt_ref[list_base + current])
+        if cap is not None:
+            fresh = (nxt != succ_ref[current]) & (nxt != pred_ref[current])
+            new = new + fresh.astype(jnp.int32)
+        p = prv_ref[list_base + nxt]
+        s = nxt_ref[list_base + nxt]
+        nxt_ref[list_base + p] = s
+        prv_ref[list_base + s] = p
+        word = bits_ref[word_base + (nxt >> 5)]
+        bits_ref[word_base + (nxt >> 5)] = word & ~(jnp.uint32(1) << (nxt & 31).astype(
+            jnp.uint32))
+        path_ref[pos * m_pad + ants] = nxt
+        return nxt, new
+
+    jax.lax.fori_loop(1, n, step, (start, jnp.zeros((block,), jnp.int32)))
+
+
+@functools.partial(jax.jit, static_argnames=("cap", "block", "interpret"))
+def construct_tours_sparse_kernel(uniforms: Array, cand_w: Array, candidates: Array,
+                                  starts: Array, q0: Array, row_offset: Array,
+                                  factor: Array | None, alive_bits: Array, nxt_l: Array,
+                                  prv_l: Array, succ: Array, pred: Array, *, cap: int | None,
+                                  interpret: bool, block: int = BLOCK) -> Array:
+    """(m, n) tours of ``construction_sparse.construct_tours_sparse`` as one kernel.
+
+    ``cand_w`` (R, k) choice information, ``candidates`` (n, k); ``alive_bits`` (m, words)
+    the initial tabu bit masks, ``nxt_l``/``prv_l`` (m, n) each ant's linked list of the
+    cities left in reference order (the start already unlinked), ``succ``/``pred`` (n,) the
+    reference tour's neighbours (read only with ``cap``, the focused construction's limit).
+    """
+    n, k = candidates.shape
+    m = starts.shape[0]
+    rows = cand_w.shape[0]
+    words = alive_bits.shape[1]
+    block = max(16, min(block, 1 << max(0, (m - 1).bit_length())))
+    m_pad = -(-m // block) * block
+    pad = m_pad - m
+    if max(n * m_pad, rows * k) >= 2**31:
+        raise ValueError(f"plan 'kernel' indexes ants x cities with int32: {m} ants x {n} "
+                         "cities is too many; use fewer ants")
+
+    def padded(x, value):
+        return jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1), constant_values=value)
+
+    def padded_lists(x):  # padded ants build a throw-away tour over the reference order
+        return jnp.concatenate([x, jnp.broadcast_to(x[:1], (pad, n))], axis=0) if pad else x
+
+    cands = jnp.concatenate([candidates.astype(jnp.int32)] * (rows // n), axis=0)
+    u = jnp.pad(uniforms, ((0, 0), (0, pad)), constant_values=0.5).reshape(-1)
+    args = [padded(starts.astype(jnp.int32), 0), padded(row_offset.astype(jnp.int32), 0),
+            padded(q0, 0.0), u, cands.reshape(-1), cand_w.reshape(-1)]
+    if cap is not None:
+        args += [succ.astype(jnp.int32), pred.astype(jnp.int32)]
+    has_factor = factor is not None
+    if has_factor:
+        args.append(padded(factor, 1.0).reshape(-1))
+    first_alias = len(args)
+    args += [padded(alive_bits, jnp.uint32(0xFFFFFFFF)).reshape(-1),
+             padded_lists(nxt_l.astype(jnp.int32)).reshape(-1),
+             padded_lists(prv_l.astype(jnp.int32)).reshape(-1)]
+    kernel = functools.partial(_sparse_kernel, n=n, k=k, words=words, has_factor=has_factor,
+                               block=block, m_pad=m_pad, cap=cap)
+    extra = {}
+    if not interpret:
+        from jax.experimental.pallas import triton as pltriton
+
+        extra["compiler_params"] = pltriton.CompilerParams(num_warps=max(1, block // 32),
+                                                           num_stages=1)
+    path, _, _, _ = pl.pallas_call(
+        kernel,
+        out_shape=(jax.ShapeDtypeStruct((n * m_pad,), jnp.int32),
+                   jax.ShapeDtypeStruct((m_pad * words,), jnp.uint32),
+                   jax.ShapeDtypeStruct((m_pad * n,), jnp.int32),
+                   jax.ShapeDtypeStruct((m_pad * n,), jnp.int32)),
+        grid=(m_pad // block,),
+        input_output_aliases={first_alias: 1, first_alias + 1: 2, first_alias + 2: 3},
+        interpret=interpret,
+        **extra,
+    )(*args)
+    return path.reshape(n, m_pad)[:, :m].T

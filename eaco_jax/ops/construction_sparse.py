@@ -24,7 +24,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from eaco_jax.ops.construction import UNROLL, _sample
+from eaco_jax.ops.construction import UNROLL, _pack_bits, _sample, kernel_compiles_here
 
 Array = jax.Array
 
@@ -56,6 +56,7 @@ def construct_tours_sparse(
     row_offset: Array | None = None,
     factor: Array | None = None,
     max_new_edges: int | None = None,
+    plan: str = "scan",
 ) -> Array:
     """Build one tour per ant on candidate lists.
 
@@ -70,6 +71,10 @@ def construct_tours_sparse(
       row_offset: (m,) multiples of n (default 0).
       factor: optional (m, n) multiplicative perturbation of the weights (chaos).
       max_new_edges: focused construction (module docstring); None: choose at every step.
+      plan: "scan" (a batched step per tour position, any backend) or "kernel" (one Pallas
+        kernel per block of ants, ``construction_kernel.construct_tours_sparse_kernel``;
+        compiled on a GPU, else in Pallas' interpreter); both build the same tours, up to
+        the kernel's order of adding prefix sums (see ``construction_kernel``).
 
     Returns:
       (m, n) int32 tours starting at ``starts``.
@@ -91,6 +96,15 @@ def construct_tours_sparse(
     prv_l = jnp.broadcast_to(pred, (m, n))
     nxt_l, prv_l = _unlink(nxt_l, prv_l, every, starts)
     uniforms = jax.random.uniform(key, (max(n - 1, 1), m))[: n - 1]
+    if plan == "kernel":
+        from eaco_jax.ops import construction_kernel
+
+        return construction_kernel.construct_tours_sparse_kernel(
+            uniforms, cand_w, cands, starts, q0, row_offset, factor, _pack_bits(alive),
+            nxt_l, prv_l, succ, pred, cap=max_new_edges, interpret=not kernel_compiles_here(),
+            block=construction_kernel.BLOCK)
+    if plan != "scan":
+        raise ValueError(f"plan={plan!r} is not one of scan, kernel")
 
     def step(carry, u):
         current, alive, nxt_l, prv_l, new = carry

@@ -163,6 +163,11 @@ class TspSettings:
                           choices=("auto", "on", "off"))
     neighbors: int | None = setting(None, "candidate-list length per city (default 20 with a "
                                     "distance matrix, 16 without)")
+    construction: str = setting("auto", "how tours are built (the same tours either way): "
+                                "kernel (one Pallas kernel per block of ants; compiled on a "
+                                "GPU), scan (a batched step per tour position); auto: the "
+                                "kernel on a GPU, else the scan",
+                                choices=("auto", "kernel", "scan"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
                                         "tour, then follows it (default: full construction)")
@@ -209,7 +214,9 @@ def build(s: TspSettings) -> Built:
     preset = auto.preset if s.preset == "auto" else s.preset
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
-                         mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges)
+                         mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges,
+                         construction_fallback={"scan": "lazy"}.get(s.construction,
+                                                                     s.construction))
     params = params_from(strategy, problem, s.params)
     budget = budget_of(s, s.iterations, {"iterations": ITERATIONS})
     return Built(problem, strategy, params, budget)

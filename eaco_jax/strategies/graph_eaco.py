@@ -361,6 +361,16 @@ class GraphEACO(Strategy):
                 f"graph problem needs an (n, n) distance matrix, n >= 3; got {shape}")
         return problem
 
+    def _sparse_plan(self) -> str:
+        """The sparse construction's plan: the kernel where ``construction_fallback`` is
+        "kernel", or "auto" on a backend whose row of ``AUTO_PLANS`` is the kernel (a GPU);
+        else the scan (the other fallback names are cost choices of the dense plans)."""
+        from eaco_jax.ops.construction import auto_plan
+
+        plan = self.construction_fallback
+        return "kernel" if plan == "kernel" or (plan == "auto" and auto_plan() == "kernel") \
+            else "scan"
+
     def _seeded(self, problem: Any) -> bool:
         return is_sparse(problem) and self.seed_tour is not False
 
@@ -374,7 +384,7 @@ class GraphEACO(Strategy):
         hilbert = hilbert_tour(problem.coords)
         nn_weights = choice_weights(jnp.ones_like(log_eta), log_eta, _f(0.0), _f(1.0))
         nn_tour = construct_tours_sparse(k_chaos, nn_weights, nbr, jnp.zeros((1,), jnp.int32),
-                                         hilbert, q0=1.0)
+                                         hilbert, q0=1.0, plan=self._sparse_plan())
         nn_length = tour_lengths(dist, nn_tour)[0]
         first = hilbert
         if self._seeded(problem):
@@ -466,7 +476,8 @@ class GraphEACO(Strategy):
                 ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
                                 state.first_tour)
                 return construct_tours_sparse(k_build, stacked, problem.neighbors, starts, ref,
-                                              q0, offset, chaos_factor, self.max_new_edges)
+                                              q0, offset, chaos_factor, self.max_new_edges,
+                                              self._sparse_plan())
             return construct_tours(k_build, stacked, starts, q0, offset, chaos_factor, cands,
                                    self.construction_fallback)
 
