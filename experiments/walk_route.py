@@ -1,15 +1,18 @@
 """Walk EACO's planned routes with the NAO on native MuJoCo (issue #32, item 4).
 
-    python experiments/walk_route.py --worlds 12              # default + random scenes 1000..
+    python experiments/walk_route.py --worlds 20              # default + 10 random scenes
     python experiments/walk_route.py --scenes default --worlds 2   # a smoke test
 
-Scenes: the shipped default and ``random_scene(SEED)`` for SEED from 1000 on (route planning's
-selection scenes are 0-24 and its report scenes 100-124; none of these is chosen on anything
-here), skipping a scene the walking robot's plan refuses (the goal walled in once obstacles are
-grown by the 0.4 m walking clearance and ramps are obstacles). Routes: the path colony, plan
-seed 0, 150 iterations. Worlds: the test stream of run seed 0 (nothing is chosen on them),
-batch 0, the same worlds for every scene. One JSON per scene under experiments/results/walk/
-plus summary.json (device, versions, command, date).
+Scenes: the shipped default and the first ``--random`` scenes ``random_scene(SEED)`` for SEED
+from 1000 on that the walking robot's plan accepts (it refuses a goal walled in once obstacles
+are grown by the 0.4 m walking clearance and ramps are obstacles; refused seeds are listed).
+Nothing was chosen on these scenes: the controller's settings and the planner's walking model
+were chosen on ``random_scene(2004..2009)`` in selection-stream worlds
+(experiments/walk_tune.py), route planning's own scenes are 0-24 and 100-124. Routes: the path
+colony, plan seed 0, 150 iterations, pricing the gait library's walking model (``eaco walk
+--speeds walk``). Worlds: the test stream of run seed 0 (nothing is chosen on them), batch 0,
+the same worlds for every scene. One JSON per scene under experiments/results/walk/ plus
+summary.json (device, versions, command, date).
 """
 
 from __future__ import annotations
@@ -32,15 +35,21 @@ from eaco_jax.runs import get  # noqa: E402
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--scenes", default="default,random:1000,random:1001,random:1002,"
-                    "random:1004")
-    ap.add_argument("--worlds", type=int, default=12)
+    ap.add_argument("--scenes", default=None, help="comma-separated scenes (default: "
+                    "'default' and --random scenes from random:1000 on)")
+    ap.add_argument("--random", type=int, default=10)
+    ap.add_argument("--worlds", type=int, default=20)
     ap.add_argument("--out", type=Path, default=HERE / "results" / "walk")
     args = ap.parse_args()
     kind = get("walk")
     rows = []
     t0 = time.perf_counter()
-    for name in args.scenes.split(","):
+    names = args.scenes.split(",") if args.scenes else ["default"]
+    seed = 1000
+    while not args.scenes and sum(n.startswith("random:") for n in names) < args.random:
+        names.append(f"random:{seed}")
+        seed += 1
+    for name in names:
         folder = args.out / name.replace(":", "_")
         settings = kind.make_settings({"scene": name, "worlds": args.worlds,
                                        "out": str(folder)})
@@ -49,6 +58,9 @@ def main() -> None:
         except ProblemError as err:
             print(f"{name}: skipped ({err})", flush=True)
             rows.append({"scene": name, "skipped": str(err)})
+            if not args.scenes and name.startswith("random:"):
+                names.append(f"random:{seed}")  # keep --random accepted scenes
+                seed += 1
             continue
         print(kind.summary(rec), flush=True)
         w = rec["worlds"]
@@ -57,6 +69,9 @@ def main() -> None:
                      "nominal_success": rec["nominal"]["success"],
                      "nominal_walked_time_s": rec["nominal"]["walked_time_s"],
                      "nominal_closest_approach_m": rec["nominal"]["closest_approach_m"],
+                     "planned_length_m": rec["planning"]["planned_length_m"],
+                     "walked_over_planned_success": [x["reach_time_s"] / rec["planning"][
+                         "planned_time_s"] for x in w["walks"] if x["success"]],
                      **{k: v for k, v in w.items() if k != "walks"},
                      "closest_approach_m_successes": [x["closest_approach_m"]
                                                       for x in w["walks"] if x["success"]],
@@ -65,7 +80,19 @@ def main() -> None:
     total = {"n": sum(r["n"] for r in done), "successes": sum(r["successes"] for r in done),
              "falls": sum(r["falls"] for r in done), "contacts": sum(r["contacts"] for r in done),
              "nominal_successes": sum(r["nominal_success"] for r in done),
-             "scenes": len(done)}
+             "scenes": len(done),
+             "walked_over_planned_max": max((r["walked_over_planned_max"] for r in done
+                                             if r["walked_over_planned_max"] is not None),
+                                            default=None),
+             "walked_over_planned_min": min((min(r["walked_over_planned_success"])
+                                             for r in done if r["walked_over_planned_success"]),
+                                            default=None),
+             "within_20_percent": sum(sum(abs(x - 1) <= 0.2
+                                          for x in r["walked_over_planned_success"])
+                                      for r in done),
+             "closest_approach_m_min_success": min(
+                 (r["closest_approach_m_min_success"] for r in done
+                  if r["closest_approach_m_min_success"] is not None), default=None)}
     from eaco_jax.gait.stats import falls_interval
 
     total["success_rate"] = total["successes"] / max(total["n"], 1)
@@ -74,7 +101,10 @@ def main() -> None:
         "command": "python experiments/walk_route.py " + " ".join(sys.argv[1:]),
         "date": str(date.today()), "device": device_info(), "seconds": time.perf_counter() - t0,
         "seeds": {"plan": "path colony seed 0", "worlds": "test stream of run seed 0, batch 0",
-                  "scenes": "default + random_scene(1000..) (planning used 0-24 and 100-124)"},
+                  "scenes": "default + random_scene(1000..) (planning used 0-24 and 100-124)",
+                  "tuned_on": "controller settings and the walking model: random_scene("
+                              "2004..2009), selection stream (experiments/results/walk/"
+                              "tuning.json, tuning_check.json); nothing here"},
         "total": total, "scenes": rows})
     print(total)
 
