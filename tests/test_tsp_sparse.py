@@ -327,3 +327,15 @@ def test_kernel_builds_the_scan_tours(cap):
         args = (jax.random.key(0), cand_w, p.neighbors, starts, ref, q0, offset, fac, cap)
         np.testing.assert_array_equal(construct_tours_sparse(*args, plan="kernel"),
                                       construct_tours_sparse(*args))
+
+
+def test_time_alone_reads_the_clock_after_every_sparse_iteration(tmp_path):
+    """Sparse-path iterations take seconds: with --max-seconds alone the clock is read after
+    each, so the budget is overshot by at most one iteration (dense runs keep 15)."""
+    from eaco_jax.runs import tsp as run_tsp
+
+    f = _write_tsp(tmp_path / "r300.tsp", np.random.default_rng(10).integers(0, 10**6, (300, 2)))
+    sparse = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="on", max_seconds=5.0))
+    dense = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="off", max_seconds=5.0))
+    assert sparse.budget["chunk_size"] == 1 and dense.budget["chunk_size"] == 15
+    assert sparse.budget["max_seconds"] == 5.0
