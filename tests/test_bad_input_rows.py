@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import warnings
 
+import jax
 import pytest
 from typer.testing import CliRunner
 
@@ -86,3 +87,132 @@ def test_interrupt_lines_say_what_was_kept(tmp_path):
     line = interrupt_message("SIGINT", _Result(), 7, 3000, None)
     assert line == ("interrupted (SIGINT) after 7 of 3000 iterations; best so far: 426, 430 "
                     "(no checkpoint: pass --checkpoint-dir to resume)")
+
+
+# ---------------------------------------------------------------- sparse TSP, walk, thermal
+@pytest.mark.parametrize(("args", "says"), [
+    (("tsp", "eil51", "--sparse", "maybe"), "sparse='maybe' is not one of auto, on, off"),
+    (("tsp", "eil51", "--neighbors", "0"), "neighbors=0 is outside its range 1.."),
+    (("tsp", "eil51", "--max-new-edges", "0"), "max_new_edges=0 is outside its range 1.."),
+    (("tsp", "eil51", "--max-new-edges", "5", "--iterations", "2", "--quiet"),
+     "max_new_edges (focused construction) needs the sparse path"),
+    (("walk", "nosuch.json"), "is not a file; give a scene JSON file, 'default' or "
+     "'random:SEED'"),
+    (("walk", "default", "--resume-deg", "200"),
+     "controller resume_deg must be in [0, turn_deg=180.0), got 200.0"),
+    (("gait-eval", "experiments/results/go2_cpu_gait.json", "--thermal", "--backend", "native",
+      "--horizon", "1"), "robot 'go2' has no electrical motor data: no thermal walk (drop "
+     "--thermal)"),
+])
+def test_sparse_tsp_walk_and_thermal_refusals_are_one_line(args, says):
+    code, last = _cli(*args)
+    assert code == 2 and last.startswith("error: ") and says in last, last
+
+
+def _tsp_file(path, body: str) -> str:
+    path.write_text(body)
+    return str(path)
+
+
+def test_tsp_files_the_sparse_path_or_the_local_search_cannot_take(tmp_path):
+    """A matrix-only (EXPLICIT) instance forced sparse, coordinates whose distances pass 2**24
+    forced sparse, and instances too small for the default local search: one line each,
+    naming the fix, before any iteration."""
+    rows = "\n".join(" ".join(str(0 if i == j else 7 * (i + j) + 3) for j in range(5))
+                     for i in range(5))
+    explicit = _tsp_file(tmp_path / "ex5.tsp", "NAME: ex5\nTYPE: TSP\nDIMENSION: 5\n"
+                         "EDGE_WEIGHT_TYPE: EXPLICIT\nEDGE_WEIGHT_FORMAT: FULL_MATRIX\n"
+                         f"EDGE_WEIGHT_SECTION\n{rows}\nEOF\n")
+    code, last = _cli("tsp", explicit, "--sparse", "on")
+    assert code == 2 and "EDGE_WEIGHT_TYPE EXPLICIT has no sparse path; use one of EUC_2D, " \
+        "CEIL_2D, ATT or the dense path" in last, last
+    code, last = _cli("tsp", explicit, "--iterations", "2", "--quiet")
+    assert code == 2 and last.startswith("error: Or-opt needs at least 8 cities, got 5; use "
+                                         "local_search='2opt'"), last
+    three = _tsp_file(tmp_path / "t3.tsp", "NAME: t3\nTYPE: TSP\nDIMENSION: 3\n"
+                      "EDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n1 0 0\n2 10 0\n3 0 10\nEOF\n")
+    code, last = _cli("tsp", three, "--local-search", "2opt", "--iterations", "2", "--quiet")
+    assert code == 2 and last.startswith("error: local search needs at least 4 cities, got 3; "
+                                         "use local_search='none'"), last
+    huge = _tsp_file(tmp_path / "huge.tsp", "NAME: huge\nTYPE: TSP\nDIMENSION: 4\n"
+                     "EDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n1 0 0\n2 3000000000000 0\n"
+                     "3 3000000000000 3000000000000\n4 0 3000000000000\nEOF\n")
+    code, last = _cli("tsp", huge, "--sparse", "on", "--local-search", "none")
+    assert code == 2 and "give distances >= 2**24, beyond exact float32 integers; rescale " \
+        "the coordinates" in last, last
+
+
+def test_candidate_lists_longer_than_the_other_cities_are_cut_to_them():
+    """--neighbors n or more is taken as 'every other city' (n - 1) on both paths."""
+    from eaco_jax.problems import load_tsplib
+
+    for sparse in (False, True):
+        assert load_tsplib("eil51", neighbors=1000, sparse=sparse).neighbors.shape == (51, 50)
+
+
+def test_walk_refuses_a_goal_walled_in_at_the_walking_clearance(tmp_path):
+    """A gap of 0.7 m passes at the scene's clearance 0.3 m (eaco path) but not at the walking
+    clearance 0.4 m (eaco walk): refused before any planning or walking."""
+    import json
+
+    walls = [[[8.6, 4.5], [8.8, 4.5], [8.8, 5.65], [8.6, 5.65]],
+             [[8.6, 6.35], [8.8, 6.35], [8.8, 7.5], [8.6, 7.5]],
+             [[8.6, 4.5], [10.5, 4.5], [10.5, 4.7], [8.6, 4.7]],
+             [[8.6, 7.3], [10.5, 7.3], [10.5, 7.5], [8.6, 7.5]]]
+    scene = tmp_path / "gap.json"
+    scene.write_text(json.dumps({
+        "name": "gap", "bounds": [0, 0, 10, 10], "start": [0.5, 5], "goal": [9.5, 6],
+        "clearance": 0.3, "obstacles": [{"polygon": w, "height": 1} for w in walls],
+        "ramps": []}))
+    code, last = _cli("path", "--scene", str(scene), "--iterations", "2", "--ants", "4",
+                      "--quiet")
+    assert code == 0, last
+    code, last = _cli("walk", str(scene), "--plan-iterations", "2", "--max-time", "1")
+    assert code == 2 and last == ("error: gap: the goal cannot be reached from the start "
+                                  "around these obstacles; move an obstacle or lower the "
+                                  "clearance"), last
+
+
+# ---------------------------------------------------------------- MAP-Elites and QD problems
+def test_map_elites_radius_and_colony_size_are_checked():
+    from eaco_jax.strategies.map_elites import MAPElites
+
+    for radius in (0, 1.5):
+        with pytest.raises(ea.ConfigError, match=f"MAPElites radius must be an int >= 1, got "
+                                                 f"{radius}"):
+            MAPElites(radius=radius)
+    with pytest.raises(ea.ConfigError, match="MAPElites needs num_ants >= 1"):
+        MAPElites(num_ants=0)
+
+
+def test_map_elites_in_islands_without_migration_only():
+    """Migration would hand an archive elites without their cells: refused when the islands
+    are built; independent islands (every=None) are fine."""
+    from eaco_jax.strategies.islands import Islands
+    from eaco_jax.strategies.map_elites import MAPElites
+
+    with pytest.raises(ea.ConfigError, match=r"MAPElites has no island migration: pass "
+                                             r"every=None \(independent islands\)"):
+        Islands(MAPElites(num_ants=8, grid=(4, 4)), islands=2, every=2)
+    assert Islands(MAPElites(num_ants=8, grid=(4, 4)), islands=2, every=None).num_ants == 16
+
+
+def test_gait_library_and_descriptor_ranges_are_checked():
+    import dataclasses
+
+    from eaco_jax.problems.gait_library import make_gait_library_problem
+    from eaco_jax.problems.qd import rastrigin_proj
+    from eaco_jax.strategies.map_elites import MAPElites
+
+    with pytest.raises(ea.ProblemError, match="robot 'go2' is a quadruped: use a biped such "
+                                              "as nao or op3"):
+        make_gait_library_problem("go2", backend="native", worlds=0)
+    with pytest.raises(ea.ProblemError, match=r"speed_range must be two finite numbers \(low, "
+                                              r"high\) with low < high, got \(0.3, 0.1\)"):
+        make_gait_library_problem(backend="native", worlds=0, speed_range=(0.3, 0.1))
+    p = rastrigin_proj()
+    flipped = dataclasses.replace(p, descriptor_lower=p.descriptor_upper,
+                                  descriptor_upper=p.descriptor_lower)
+    with pytest.raises(ea.ProblemError, match="descriptor bounds must be finite 1-D vectors of "
+                                              "one length with lower < upper"):
+        MAPElites(num_ants=4, grid=(2, 2)).init(jax.random.key(0), flipped)

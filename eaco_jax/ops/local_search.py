@@ -65,9 +65,11 @@ def _check(tours: Array, dist: Array, neighbors: Array | None, or_opt: bool = Fa
             f"dist must have shape ({n}, {n}) for tours of {n} cities, got {dist.shape}"
         )
     if n < 4:
-        raise ValueError(f"local search needs at least 4 cities, got {n}")
+        raise ConfigError(f"local search needs at least 4 cities, got {n}; use "
+                          "local_search='none' (eaco tsp --local-search none)")
     if or_opt and n < 2 * OR_OPT_MAX + 2:
-        raise ValueError(f"Or-opt needs at least {2 * OR_OPT_MAX + 2} cities, got {n}")
+        raise ConfigError(f"Or-opt needs at least {2 * OR_OPT_MAX + 2} cities, got {n}; use "
+                          "local_search='2opt' or 'none' (eaco tsp --local-search 2opt)")
     if neighbors is not None and (neighbors.ndim != 2 or neighbors.shape[0] != n):
         raise ValueError(f"neighbors must have shape ({n}, k), got {neighbors.shape}")
 

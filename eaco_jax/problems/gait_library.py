@@ -152,7 +152,8 @@ def make_gait_library_problem(
     gait = make_gait_problem(robot, backend=backend, horizon=horizon, robust=robust, impl=impl)
     if gait.spec.gait != "biped":
         raise ProblemError(f"the gait library needs a biped's walk engine (direction and turn "
-                           f"rate); robot {gait.spec.name!r} is a {gait.spec.gait}")
+                           f"rate); robot {gait.spec.name!r} is a {gait.spec.gait}: use a "
+                           "biped such as nao or op3")
     ranges = [speed_range, yaw_range] + ([lateral_range] if lateral_range is not None else [])
     for label, r in zip(("speed_range", "yaw_range", "lateral_range"), ranges, strict=False):
         if (len(r) != 2 or not all(isinstance(v, int | float) and math.isfinite(v) for v in r)

@@ -113,6 +113,9 @@ class Islands(Strategy):
                               f"{self.migrants}")
         if self.every is not None and self.every < 1:
             raise ConfigError(f"every must be >= 1 or None (never), got {self.every}")
+        if self.every is not None and not getattr(self.strategy, "migrates", True):
+            raise ConfigError(f"{type(self.strategy).__name__} has no island migration: pass "
+                              "every=None (independent islands) or run seeds side by side")
         if self.topology not in TOPOLOGIES:
             raise ConfigError(f"topology={self.topology!r} is not one of {TOPOLOGIES}")
         if self.replace not in REPLACEMENTS:

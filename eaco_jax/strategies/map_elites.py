@@ -91,6 +91,7 @@ class MAPElites(Strategy):
     variation: str = "isoline"
     radius: int = 1  # eaco: neighbourhood of a cell, in grid cells (Chebyshev distance)
     problem_kind: ClassVar[str] = "qd"
+    migrates: ClassVar[bool] = False  # a migrant needs its problem to find its cell
 
     def __post_init__(self) -> None:
         if self.num_ants < 1:
