@@ -9,6 +9,7 @@ and the test(s) in tests/ that fail if that behaviour regresses (``none`` where 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import pickle
@@ -181,6 +182,126 @@ def constrained_gait_rows() -> None:
            lambda: cli("gait-eval", "experiments/results/nao_best_gait.json", "--stream",
                        "validation"),
            test="tests/test_bad_input_rows.py::test_command_line_refusals_are_one_line")
+
+
+def quality_diversity_rows() -> None:
+    """MAP-Elites, QD problems and the gait library (issue 32)."""
+    from eaco_jax.problems.gait_library import make_gait_library_problem
+    from eaco_jax.problems.qd import rastrigin_proj
+    from eaco_jax.strategies.islands import Islands
+    from eaco_jax.strategies.map_elites import MAPElites
+
+    rows = "tests/test_bad_input_rows.py::"
+    held = "tests/test_map_elites.py::test_bad_configurations_get_one_line"
+    toy = rastrigin_proj()
+    record("`MAPElites(variation='cma')`", "API", lambda: MAPElites(variation="cma"), test=held)
+    record("`MAPElites(grid=(0, 3))`", "API", lambda: MAPElites(grid=(0, 3)), test=held)
+    record("`MAPElites(radius=0)`", "API", lambda: MAPElites(radius=0),
+           test=rows + "test_map_elites_radius_and_colony_size_are_checked")
+    record("`MAPElites(grid=(3, 3, 3))` on a problem of 2 descriptors (rastrigin_proj)", "API",
+           lambda: MAPElites(grid=(3, 3, 3)).init(jax.random.key(0), toy), test=held)
+    record("`MAPElites().init(key, problems.get('sphere'))` (not a QD problem)", "API",
+           lambda: MAPElites().init(jax.random.key(0), ea.problems.get("sphere")), test=held)
+    record("`ea.minimize(problems.get('sphere'), MAPElites())`", "API",
+           lambda: ea.minimize(ea.problems.get("sphere"), MAPElites(num_ants=4, grid=(2, 2)),
+                               iterations=2),
+           test=rows + "test_map_elites_on_a_problem_of_another_kind")
+    flipped = dataclasses.replace(toy, descriptor_lower=toy.descriptor_upper,
+                                  descriptor_upper=toy.descriptor_lower)
+    record("QD problem whose descriptor_lower > descriptor_upper", "API",
+           lambda: MAPElites(num_ants=4, grid=(2, 2)).init(jax.random.key(0), flipped),
+           test=rows + "test_gait_library_and_descriptor_ranges_are_checked")
+    record("`Islands(MAPElites(), every=2)` (migration)", "API",
+           lambda: Islands(MAPElites(num_ants=8, grid=(4, 4)), islands=2, every=2),
+           test=rows + "test_map_elites_in_islands_without_migration_only")
+    record("`make_gait_library_problem('go2')` (a quadruped)", "API",
+           lambda: make_gait_library_problem("go2", backend="native", worlds=0),
+           test=rows + "test_gait_library_and_descriptor_ranges_are_checked")
+    record("`make_gait_library_problem(speed_range=(0.3, 0.1))`", "API",
+           lambda: make_gait_library_problem(backend="native", worlds=0,
+                                             speed_range=(0.3, 0.1)),
+           test=rows + "test_gait_library_and_descriptor_ranges_are_checked")
+
+
+def walk_rows() -> None:
+    """``eaco walk`` (issue 32) and ``eaco gait-eval --thermal`` (issue 30)."""
+    rows = "tests/test_bad_input_rows.py::"
+    cli_test = rows + "test_sparse_tsp_walk_and_thermal_refusals_are_one_line"
+    walls = [[[8.6, 4.5], [8.8, 4.5], [8.8, 5.65], [8.6, 5.65]],
+             [[8.6, 6.35], [8.8, 6.35], [8.8, 7.5], [8.6, 7.5]],
+             [[8.6, 4.5], [10.5, 4.5], [10.5, 4.7], [8.6, 4.7]],
+             [[8.6, 7.3], [10.5, 7.3], [10.5, 7.5], [8.6, 7.5]]]
+    gap = TMP / "gap.json"
+    gap.write_text(json.dumps({
+        "name": "gap", "bounds": [0, 0, 10, 10], "start": [0.5, 5], "goal": [9.5, 6],
+        "clearance": 0.3, "obstacles": [{"polygon": w, "height": 1} for w in walls],
+        "ramps": []}))
+    record("`eaco walk scene.json`: goal behind a 0.7 m gap (open at the scene's clearance "
+           "0.3 m, `eaco path` plans it; walled in at the 0.4 m walking clearance)", "CLI",
+           lambda: cli("walk", str(gap), "--plan-iterations", "2", "--max-time", "1"),
+           test=rows + "test_walk_refuses_a_goal_walled_in_at_the_walking_clearance")
+    record("`eaco walk nosuch.json`", "CLI", lambda: cli("walk", "nosuch.json"),
+           test=(cli_test, "tests/test_scenes.py::test_malformed_and_missing_files"))
+    record("`eaco walk random:x`", "CLI", lambda: cli("walk", "random:x"), test=cli_test)
+    controller = "tests/test_walk_route.py::test_bad_controller_settings_are_one_line"
+    record("`eaco walk default --resume-deg 200` (above --turn-deg)", "CLI",
+           lambda: cli("walk", "default", "--resume-deg", "200"), test=(cli_test, controller))
+    record("`eaco walk default --turn-deg 270`", "CLI",
+           lambda: cli("walk", "default", "--turn-deg", "270"), test=controller)
+    record("`eaco walk default --slow-deg 70` (above --stop-deg 60)", "CLI",
+           lambda: cli("walk", "default", "--slow-deg", "70"), test=controller)
+    record("`eaco walk default --min-step 0`", "CLI",
+           lambda: cli("walk", "default", "--min-step", "0"), test=controller)
+    record("`eaco walk default --lookahead -1`", "CLI",
+           lambda: cli("walk", "default", "--lookahead", "-1"), test=controller)
+    record("`eaco gait-eval G --thermal` for the Go2 (no electrical motor data)", "CLI",
+           lambda: cli("gait-eval", "experiments/results/go2_cpu_gait.json", "--thermal",
+                       "--backend", "native", "--horizon", "1"),
+           test=("tests/test_thermal_walk.py::test_thermal_needs_electrical_motor_data",
+                 cli_test))
+
+
+def sparse_tsp_rows() -> None:
+    """``eaco tsp`` on the sparse path (issue 33) and instances too small for local search."""
+    rows = "tests/test_bad_input_rows.py::"
+    cli_test = rows + "test_sparse_tsp_walk_and_thermal_refusals_are_one_line"
+    files = rows + "test_tsp_files_the_sparse_path_or_the_local_search_cannot_take"
+    record("`eaco tsp eil51 --sparse maybe`", "CLI",
+           lambda: cli("tsp", "eil51", "--sparse", "maybe"), test=cli_test)
+    record("`eaco tsp eil51 --neighbors 0`", "CLI",
+           lambda: cli("tsp", "eil51", "--neighbors", "0"), test=cli_test)
+
+    def long_lists() -> str:
+        dense = load_tsplib("eil51", neighbors=1000, sparse=False).neighbors.shape
+        sparse = load_tsplib("eil51", neighbors=1000, sparse=True).neighbors.shape
+        return f"accepted: candidate lists of every other city, {dense} dense, {sparse} sparse"
+    record("`--neighbors 1000` on eil51 (51 cities)", "API", long_lists,
+           test=rows + "test_candidate_lists_longer_than_the_other_cities_are_cut_to_them")
+    record("`eaco tsp eil51 --max-new-edges 0`", "CLI",
+           lambda: cli("tsp", "eil51", "--max-new-edges", "0"), test=cli_test)
+    record("`eaco tsp eil51 --max-new-edges 5` (dense path)", "CLI",
+           lambda: cli("tsp", "eil51", "--max-new-edges", "5", "--iterations", "2", "--quiet"),
+           test=cli_test)
+    matrix = "\n".join(" ".join(str(0 if i == j else 7 * (i + j) + 3) for j in range(5))
+                       for i in range(5))
+    explicit = write_tsp("ex5.tsp", "NAME: ex5\nTYPE: TSP\nDIMENSION: 5\nEDGE_WEIGHT_TYPE: "
+                         "EXPLICIT\nEDGE_WEIGHT_FORMAT: FULL_MATRIX\nEDGE_WEIGHT_SECTION\n"
+                         f"{matrix}\nEOF\n")
+    record("`eaco tsp ex5.tsp --sparse on` (EXPLICIT: a matrix, no coordinates)", "CLI",
+           lambda: cli("tsp", explicit, "--sparse", "on"), test=files)
+    record("`eaco tsp ex5.tsp` (5 cities, default local search or-2opt)", "CLI",
+           lambda: cli("tsp", explicit, "--iterations", "2", "--quiet"), test=files)
+    three = write_tsp("t3.tsp", "NAME: t3\nTYPE: TSP\nDIMENSION: 3\nEDGE_WEIGHT_TYPE: EUC_2D\n"
+                      "NODE_COORD_SECTION\n1 0 0\n2 10 0\n3 0 10\nEOF\n")
+    record("`eaco tsp t3.tsp --local-search 2opt` (3 cities)", "CLI",
+           lambda: cli("tsp", three, "--local-search", "2opt", "--iterations", "2", "--quiet"),
+           test=files)
+    huge = write_tsp("huge_xy.tsp", "NAME: huge\nTYPE: TSP\nDIMENSION: 4\nEDGE_WEIGHT_TYPE: "
+                     "EUC_2D\nNODE_COORD_SECTION\n1 0 0\n2 3000000000000 0\n"
+                     "3 3000000000000 3000000000000\n4 0 3000000000000\nEOF\n")
+    record("`eaco tsp huge.tsp --sparse on`: coordinates up to 3e12 (edges past 2**24)",
+           "CLI",
+           lambda: cli("tsp", huge, "--sparse", "on", "--local-search", "none"), test=files)
 
 
 #: Interrupts and concurrent command-line runs (exercised in tests/test_interrupt.py, not
@@ -559,6 +680,12 @@ def main() -> None:
     scene_rows()  # scenes and walking-time routes (issue 32)
 
     constrained_gait_rows()  # constrained gait search and world streams (issue 30)
+
+    quality_diversity_rows()  # MAP-Elites, QD problems, the gait library (issue 32)
+
+    walk_rows()  # eaco walk (issue 32), gait-eval --thermal (issue 30)
+
+    sparse_tsp_rows()  # the sparse TSP path (issue 33), instances too small for local search
 
     lines = [
         "# Bad inputs and faults, and what each gets now",

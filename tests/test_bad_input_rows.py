@@ -98,6 +98,7 @@ def test_interrupt_lines_say_what_was_kept(tmp_path):
      "max_new_edges (focused construction) needs the sparse path"),
     (("walk", "nosuch.json"), "is not a file; give a scene JSON file, 'default' or "
      "'random:SEED'"),
+    (("walk", "random:x"), "scene 'random:x': write random:SEED with an integer seed"),
     (("walk", "default", "--resume-deg", "200"),
      "controller resume_deg must be in [0, turn_deg=180.0), got 200.0"),
     (("gait-eval", "experiments/results/go2_cpu_gait.json", "--thermal", "--backend", "native",
@@ -183,6 +184,14 @@ def test_map_elites_radius_and_colony_size_are_checked():
             MAPElites(radius=radius)
     with pytest.raises(ea.ConfigError, match="MAPElites needs num_ants >= 1"):
         MAPElites(num_ants=0)
+
+
+def test_map_elites_on_a_problem_of_another_kind():
+    from eaco_jax.strategies.map_elites import MAPElites
+
+    with pytest.raises(ea.ProblemError, match="MAPElites solves 'qd' problems, but 'sphere10' "
+                                              "is 'continuous'"):
+        ea.minimize(ea.problems.get("sphere"), MAPElites(num_ants=4, grid=(2, 2)), iterations=2)
 
 
 def test_map_elites_in_islands_without_migration_only():
