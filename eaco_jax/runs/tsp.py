@@ -168,7 +168,7 @@ class TspSettings:
     construction: str = setting("auto", "how tours are built (the same tours either way): "
                                 "kernel (one Pallas kernel per block of ants; compiled on a "
                                 "GPU), scan (a batched step per tour position); auto: the "
-                                "kernel on a GPU, else the scan",
+                                "dense path's measured plan; the sparse path's scan",
                                 choices=("auto", "kernel", "scan"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "

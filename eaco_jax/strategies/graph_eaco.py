@@ -362,14 +362,11 @@ class GraphEACO(Strategy):
         return problem
 
     def _sparse_plan(self) -> str:
-        """The sparse construction's plan: the kernel where ``construction_fallback`` is
-        "kernel", or "auto" on a backend whose row of ``AUTO_PLANS`` is the kernel (a GPU);
-        else the scan (the other fallback names are cost choices of the dense plans)."""
-        from eaco_jax.ops.construction import auto_plan
-
-        plan = self.construction_fallback
-        return "kernel" if plan == "kernel" or (plan == "auto" and auto_plan() == "kernel") \
-            else "scan"
+        """The sparse construction's plan: the kernel only where ``construction_fallback`` is
+        "kernel"; else the scan ("auto" included: the sparse kernel equals the scan in Pallas'
+        interpreter, but no compiled run on a GPU has checked or timed it yet, so no default
+        picks it)."""
+        return "kernel" if self.construction_fallback == "kernel" else "scan"
 
     def _seeded(self, problem: Any) -> bool:
         return is_sparse(problem) and self.seed_tour is not False
