@@ -74,9 +74,8 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def import_qdax():
-    """QDax's MAP-Elites pieces from ``.qdax`` (installed there with --no-deps)."""
-    if str(QDAX_DIR) not in sys.path:
-        sys.path.insert(0, str(QDAX_DIR))
+    """QDax's MAP-Elites pieces: ``pip install '.[qd]'``, or QDax installed with --no-deps in
+    ``.qdax`` and that folder on ``PYTHONPATH`` (``PYTHONPATH=.qdax python ...``)."""
     try:
         import qdax
         from qdax.core.containers.mapelites_repertoire import compute_euclidean_centroids
@@ -85,9 +84,10 @@ def import_qdax():
         from qdax.core.map_elites import MAPElites as QDaxMAPElites
         from qdax.utils.metrics import default_qd_metrics
     except ImportError as err:
-        raise SystemExit(f"QDax does not import ({err}); install it beside the venv: "
-                         ".venv/bin/pip install --no-deps --target .qdax qdax==0.5.0 "
-                         "scikit-learn joblib threadpoolctl cloudpickle narwhals") from None
+        raise SystemExit(f"QDax does not import ({err}): pip install '.[qd]', or install it "
+                         "beside the venv (.venv/bin/pip install --no-deps --target .qdax "
+                         "qdax==0.5.0 scikit-learn joblib threadpoolctl cloudpickle narwhals) "
+                         "and run with PYTHONPATH=.qdax") from None
     return dict(version=qdax.__version__ if hasattr(qdax, "__version__") else "0.5.0",
                 centroids=compute_euclidean_centroids, isoline=isoline_variation,
                 emitter=MixingEmitter, MAPElites=QDaxMAPElites, metrics=default_qd_metrics)

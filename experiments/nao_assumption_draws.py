@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -25,13 +24,11 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+from common import write_results
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import write_results  # noqa: E402
-
-from eaco_jax.gait import walk_engine as we  # noqa: E402
-from eaco_jax.gait.robot import ROBOTS_DIR, load_robot  # noqa: E402
-from eaco_jax.problems.gait import make_gait_problem  # noqa: E402
+from eaco_jax.gait import walk_engine as we
+from eaco_jax.gait.robot import ROBOTS_DIR, load_robot
+from eaco_jax.problems.gait import make_gait_problem
 
 
 def draw_spec(rng: np.random.Generator, folder: Path, i: int):

@@ -34,21 +34,18 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import sys
 import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from common import write_results
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import write_results  # noqa: E402
-
-from eaco_jax.gait import constraints as gc  # noqa: E402
-from eaco_jax.gait import walk_engine as we  # noqa: E402
-from eaco_jax.gait.motors import motor_model  # noqa: E402
-from eaco_jax.problems.gait import make_gait_problem  # noqa: E402
+from eaco_jax.gait import constraints as gc
+from eaco_jax.gait import walk_engine as we
+from eaco_jax.gait.motors import motor_model
+from eaco_jax.problems.gait import make_gait_problem
 
 GRID = {
     "hip_height": (0.19, 0.20, 0.21, 0.22, 0.23, 0.24),

@@ -23,14 +23,13 @@ import time
 from datetime import date
 from pathlib import Path
 
+from common import device_info
+
+from eaco_jax.errors import ProblemError
+from eaco_jax.outputs import write_json
+from eaco_jax.runs import get
+
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-from common import device_info  # noqa: E402
-
-from eaco_jax.errors import ProblemError  # noqa: E402
-from eaco_jax.outputs import write_json  # noqa: E402
-from eaco_jax.runs import get  # noqa: E402
 
 
 def main() -> None:

@@ -25,14 +25,12 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
+from common import device_info
+
+from eaco_jax.errors import ProblemError
+from eaco_jax.outputs import write_json
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-from common import device_info  # noqa: E402
-
-from eaco_jax.errors import ProblemError  # noqa: E402
-from eaco_jax.outputs import write_json  # noqa: E402
 
 
 def time_model(walks: list[dict], routes: dict[str, dict[str, float]]) -> dict | None:
