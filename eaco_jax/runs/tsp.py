@@ -306,8 +306,12 @@ def peak_memory() -> dict[str, int | None]:
 
     import jax
 
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    rss *= 1 if sys.platform == "darwin" else 1024  # bytes on macOS, KiB on Linux
+    try:  # Linux: this program's own peak (ru_maxrss keeps a forking parent's high-water mark)
+        with open("/proc/self/status") as f:
+            rss = next(int(ln.split()[1]) * 1024 for ln in f if ln.startswith("VmHWM:"))
+    except (OSError, StopIteration, ValueError):
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        rss *= 1 if sys.platform == "darwin" else 1024  # bytes on macOS, KiB on Linux
     device = None
     try:
         stats = jax.devices()[0].memory_stats() or {}
