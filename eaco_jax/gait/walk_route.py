@@ -117,15 +117,16 @@ def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
 class Controller:
     """Settings of the path-following controller (lengths in m, angles in deg, rates in rad/s).
 
-    The defaults were chosen on tuning scenes and selection-stream worlds (claim
-    ``walk-controller-selection``), not on the scenes and worlds the walk is reported on.
+    The defaults were chosen on tuning scenes and selection-stream worlds (claims
+    ``walk-controller-selection``; ``walk-steer-tuning-chosen`` for ``steer_gain``), not on the
+    scenes and worlds the walk is reported on.
     """
 
     lookahead: float = 0.9
     capture: float = 0.3
     turn_deg: float = 180.0  # turn on the spot above this heading error (180: never)
     resume_deg: float = 20.0  # ... until the error is below this
-    steer_gain: float = 1.0  # forward gait's turn_rate [rad/s] per rad of heading error
+    steer_gain: float = 1.2  # forward gait's turn_rate [rad/s] per rad of heading error
     max_steer: float = 0.8  # clamp of the forward gait's turn_rate [rad/s]
     slow_deg: float = 15.0  # the forward gait's step shortens above this heading error ...
     stop_deg: float = 60.0  # ... to min_step of its length at this error and beyond

@@ -64,7 +64,7 @@ class WalkSettings:
     turn_deg: float = setting(180.0, "controller: turn on the spot above this heading error "
                               "(180: never)")
     resume_deg: float = setting(20.0, "controller: stop turning below this heading error")
-    steer_gain: float = setting(1.0, "controller: forward gait's turn rate per heading error")
+    steer_gain: float = setting(1.2, "controller: forward gait's turn rate per heading error")
     max_steer: float = setting(0.8, "controller: largest turn rate of the forward gait "
                                "[rad/s]")
     slow_deg: float = setting(15.0, "controller: shorten the forward step above this heading "
