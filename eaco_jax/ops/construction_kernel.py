@@ -48,6 +48,52 @@ def _any(x: Array) -> Array:
     return jnp.max(x.astype(jnp.int32)) > 0
 
 
+def _candidate_choice(row: Array, u: Array, q0: Array, ants: Array, word_base: Array, *,
+                      cand_ref, cw_ref, bits_ref, factor_ref, n: int, k: int,
+                      block: int) -> tuple[Array, Array]:
+    """Eq. 2 and the q0 rule on row ``row``'s k candidates for each ant of the block: whether
+    any candidate is allowed (``ok``) and the chosen node (meaningful where ``ok``). The
+    candidates' weights, greedy key and prefix sums are taken one column at a time."""
+    cand_bits = id_bits(k)
+    nodes, weights, cums = [], [], []
+    best_key = jnp.zeros((block,), jnp.int32)
+    total = jnp.zeros((block,), jnp.float32)
+    for j in range(k):
+        node = cand_ref[row * k + j]
+        w = jnp.where(bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
+        if factor_ref is not None:
+            w = w * factor_ref[ants * n + node]
+        best_key = jnp.maximum(best_key, packed_keys(w, jnp.int32(j), cand_bits))
+        total = total + w
+        nodes.append(node)
+        weights.append(w)
+        cums.append(total)
+    ok = (best_key >> cand_bits) > 0
+    greedy = best_key & ((1 << cand_bits) - 1)
+    v = (u - q0) / jnp.maximum(1.0 - q0, 1e-12)
+    target = jnp.maximum(v * total, jnp.finfo(jnp.float32).tiny)
+    sampled = jnp.zeros((block,), jnp.int32)
+    for c in cums:
+        sampled = sampled + (c < target).astype(jnp.int32)
+    sampled = jnp.minimum(sampled, k - 1)
+    hit = jnp.zeros((block,), jnp.float32)
+    for j in range(k):
+        hit = jnp.where(sampled == j, weights[j], hit)
+    choice = jnp.where((u < q0) | ~(hit > 0), greedy, sampled)
+    nxt = jnp.zeros((block,), jnp.int32)
+    for j in range(k):
+        nxt = jnp.where(choice == j, nodes[j], nxt)
+    return ok, nxt
+
+
+def _visit(nxt: Array, pos: Array, ants: Array, word_base: Array, *, bits_ref, path_ref,
+           m_pad: int) -> None:
+    """Mark ``nxt`` tabu in each ant's bit mask and write it at tour position ``pos``."""
+    word = bits_ref[word_base + (nxt >> 5)]
+    bits_ref[word_base + (nxt >> 5)] = word & ~(jnp.uint32(1) << (nxt & 31).astype(jnp.uint32))
+    path_ref[pos * m_pad + ants] = nxt
+
+
 def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, block: int,
             m_pad: int):
     it = iter(refs)
@@ -66,7 +112,6 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
     word_base = ants * words
     offset = offset_ref[ants]
     q0 = q0_ref[ants]
-    cand_bits = id_bits(k)
     row_bits = id_bits(n)
     start = start_ref[ants]
     path_ref[ants] = start  # position 0 of the (n, m_pad) path
@@ -125,43 +170,14 @@ def _kernel(*refs, n: int, k: int, words: int, backup: int, has_factor: bool, bl
     def step(pos, current):
         row = offset + current
         u = u_ref[(pos - 1) * m_pad + ants]
-        # the k candidates, one column at a time: weights, greedy key, prefix sums
-        nodes, weights, cums = [], [], []
-        best_key = jnp.zeros((block,), jnp.int32)
-        total = jnp.zeros((block,), jnp.float32)
-        for j in range(k):
-            node = cand_ref[row * k + j]
-            w = jnp.where(bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
-            if has_factor:
-                w = w * factor_ref[ants * n + node]
-            best_key = jnp.maximum(best_key, packed_keys(w, jnp.int32(j), cand_bits))
-            total = total + w
-            nodes.append(node)
-            weights.append(w)
-            cums.append(total)
-        ok = (best_key >> cand_bits) > 0
-        greedy = best_key & ((1 << cand_bits) - 1)
-        v = (u - q0) / jnp.maximum(1.0 - q0, 1e-12)
-        target = jnp.maximum(v * total, jnp.finfo(jnp.float32).tiny)
-        sampled = jnp.zeros((block,), jnp.int32)
-        for c in cums:
-            sampled = sampled + (c < target).astype(jnp.int32)
-        sampled = jnp.minimum(sampled, k - 1)
-        hit = jnp.zeros((block,), jnp.float32)
-        for j in range(k):
-            hit = jnp.where(sampled == j, weights[j], hit)
-        choice = jnp.where((u < q0) | ~(hit > 0), greedy, sampled)
-        nxt = jnp.zeros((block,), jnp.int32)
-        for j in range(k):
-            nxt = jnp.where(choice == j, nodes[j], nxt)
+        ok, nxt = _candidate_choice(row, u, q0, ants, word_base, cand_ref=cand_ref,
+                                    cw_ref=cw_ref, bits_ref=bits_ref, factor_ref=factor_ref,
+                                    n=n, k=k, block=block)
         pending = ~ok
         if backup:
             nxt, pending = backup_list(row, nxt, pending)
         nxt = whole_row(current, pending, nxt)
-        word = bits_ref[word_base + (nxt >> 5)]
-        bits_ref[word_base + (nxt >> 5)] = word & ~(jnp.uint32(1) << (nxt & 31).astype(
-            jnp.uint32))
-        path_ref[pos * m_pad + ants] = nxt
+        _visit(nxt, pos, ants, word_base, bits_ref=bits_ref, path_ref=path_ref, m_pad=m_pad)
         return nxt
 
     jax.lax.fori_loop(1, n, step, start)
@@ -247,7 +263,6 @@ def _sparse_kernel(*refs, n: int, k: int, words: int, has_factor: bool, block: i
     list_base = ants * n
     offset = offset_ref[ants]
     q0 = q0_ref[ants]
-    cand_bits = id_bits(k)
     start = start_ref[ants]
     path_ref[ants] = start
 
@@ -255,36 +270,11 @@ def _sparse_kernel(*refs, n: int, k: int, words: int, has_factor: bool, block: i
         current, new = carry
         row = offset + current
         u = u_ref[(pos - 1) * m_pad + ants]
-        nodes, weights, cums = [], [], []
-        best_key = jnp.zeros((block,), jnp.int32)
-        total = jnp.zeros((block,), jnp.float32)
-        for j in range(k):
-            node = cand_ref[row * k + j]
-            w = jnp.where(bit_allowed(bits_ref, word_base, node), cw_ref[row * k + j], 0.0)
-            if has_factor:
-                w = w * factor_ref[ants * n + node]
-            best_key = jnp.maximum(best_key, packed_keys(w, jnp.int32(j), cand_bits))
-            total = total + w
-            nodes.append(node)
-            weights.append(w)
-            cums.append(total)
-        ok = (best_key >> cand_bits) > 0
+        ok, nxt = _candidate_choice(row, u, q0, ants, word_base, cand_ref=cand_ref,
+                                    cw_ref=cw_ref, bits_ref=bits_ref, factor_ref=factor_ref,
+                                    n=n, k=k, block=block)
         if cap is not None:
             ok = ok & (new < cap)
-        greedy = best_key & ((1 << cand_bits) - 1)
-        v = (u - q0) / jnp.maximum(1.0 - q0, 1e-12)
-        target = jnp.maximum(v * total, jnp.finfo(jnp.float32).tiny)
-        sampled = jnp.zeros((block,), jnp.int32)
-        for c in cums:
-            sampled = sampled + (c < target).astype(jnp.int32)
-        sampled = jnp.minimum(sampled, k - 1)
-        hit = jnp.zeros((block,), jnp.float32)
-        for j in range(k):
-            hit = jnp.where(sampled == j, weights[j], hit)
-        choice = jnp.where((u < q0) | ~(hit > 0), greedy, sampled)
-        nxt = jnp.zeros((block,), jnp.int32)
-        for j in range(k):
-            nxt = jnp.where(choice == j, nodes[j], nxt)
         nxt = jnp.where(ok, nxt, nxt_ref[list_base + current])
         if cap is not None:
             fresh = (nxt != succ_ref[current]) & (nxt != pred_ref[current])
@@ -293,10 +283,7 @@ def _sparse_kernel(*refs, n: int, k: int, words: int, has_factor: bool, block: i
         s = nxt_ref[list_base + nxt]
         nxt_ref[list_base + p] = s
         prv_ref[list_base + s] = p
-        word = bits_ref[word_base + (nxt >> 5)]
-        bits_ref[word_base + (nxt >> 5)] = word & ~(jnp.uint32(1) << (nxt & 31).astype(
-            jnp.uint32))
-        path_ref[pos * m_pad + ants] = nxt
+        _visit(nxt, pos, ants, word_base, bits_ref=bits_ref, path_ref=path_ref, m_pad=m_pad)
         return nxt, new
 
     jax.lax.fori_loop(1, n, step, (start, jnp.zeros((block,), jnp.int32)))
