@@ -389,9 +389,14 @@ class GraphEACO(Strategy):
                                        jax.random.fold_in(k_chaos, 1))[0]
         tau_max, _ = self._bounds(params.replace(use_bounds=jnp.bool_(True)), nn_length, n)
         tau0 = jnp.where(params.init_at_tau_max, tau_max, pheromone.initial_tau(n, nn_length))
-        return SparseGraphState(
+        return SparseGraphState(**self._fresh_fields(key, k_chaos, params, n, nn_length),
+                                tau=jnp.full(nbr.shape, tau0, jnp.float32), first_tour=first)
+
+    def _fresh_fields(self, key: Array, k_chaos: Array, params: GraphParams, n: int,
+                      nn_length: Array) -> dict[str, Any]:
+        """The state fields a dense and a sparse colony start with alike (all but the trails)."""
+        return dict(
             **base_fields(key, params, jnp.arange(n, dtype=jnp.int32)),
-            tau=jnp.full(nbr.shape, tau0, jnp.float32),
             chaos=chaos.logistic_init(k_chaos, (self.num_ants, n)),
             iter_best_cost=jnp.asarray(jnp.inf, jnp.float32),
             pheromone_tour_length=nn_length,
@@ -399,7 +404,6 @@ class GraphEACO(Strategy):
             restart_best_solution=jnp.arange(n, dtype=jnp.int32),
             restart_best_cost=jnp.asarray(jnp.inf, jnp.float32),
             restarts=jnp.zeros((), jnp.int32),
-            first_tour=first,
         )
 
     def _init(self, key: Array, problem: Any, params: GraphParams) -> GraphState:
@@ -416,18 +420,8 @@ class GraphEACO(Strategy):
         # the MMAS tau_max even when the bounds are off (else the trails would start at +inf)
         tau_max, _ = self._bounds(params.replace(use_bounds=jnp.bool_(True)), nn_length, n)
         tau0 = jnp.where(params.init_at_tau_max, tau_max, pheromone.initial_tau(n, nn_length))
-        tau = jnp.full((n, n), tau0, jnp.float32)
-        return GraphState(
-            **base_fields(key, params, jnp.arange(n, dtype=jnp.int32)),
-            tau=tau,
-            chaos=chaos.logistic_init(k_chaos, (self.num_ants, n)),
-            iter_best_cost=jnp.asarray(jnp.inf, jnp.float32),
-            pheromone_tour_length=nn_length,
-            since_improvement=jnp.zeros((), jnp.int32),
-            restart_best_solution=jnp.arange(n, dtype=jnp.int32),
-            restart_best_cost=jnp.asarray(jnp.inf, jnp.float32),
-            restarts=jnp.zeros((), jnp.int32),
-        )
+        return GraphState(**self._fresh_fields(key, k_chaos, params, n, nn_length),
+                          tau=jnp.full((n, n), tau0, jnp.float32))
 
     def _bounds(self, p: GraphParams, best_length: Array, n: int) -> tuple[Array, Array]:
         """MMAS limits for the rules that are on (tau_max = steady state of the best tour)."""
