@@ -35,6 +35,7 @@ from eaco_jax.problems.tsp_exact import (  # noqa: F401 - re-exported
     INT32_SUM_LIMIT,
     WIDE_SUM_MAX_CITIES,
     exact_int_sum,
+    host_lengths,
     integer_lengths,
     validate_tour,
     words_needed,
@@ -152,11 +153,7 @@ class TSP:
         """
         if _is_traced(tours, self.dist):
             return _traced_lengths(self.dist, tours, self.integer, self.sum_words)
-        t = np.asarray(tours)
-        if t.ndim != 2 or t.shape[1] != self.n:
-            raise ProblemError(
-                f"{self.name}: evaluate takes tours of shape (m, {self.n}), got {t.shape}")
-        return np.array([self.exact_length(row) for row in t], dtype=np.float64)
+        return host_lengths(self, tours)
 
     def exact_length(self, tour: Any) -> float:
         """Closed length of one tour on the host (checked: a permutation of ``0..n-1``):

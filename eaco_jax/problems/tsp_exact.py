@@ -3,6 +3,8 @@ tour check, shared by the dense and the sparse TSP."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -70,3 +72,13 @@ def validate_tour(tour: np.ndarray, n: int) -> np.ndarray:
         twice = np.flatnonzero(counts > 1)[:5].tolist()
         raise ProblemError(f"tour is not a permutation: repeated {twice}, missing {missing}")
     return t
+
+
+def host_lengths(problem: Any, tours: Any) -> np.ndarray:
+    """Float64 lengths of concrete tours ``(m, n)`` from the host, each checked by the
+    problem's ``exact_length`` (a wrong shape is one :class:`ProblemError`)."""
+    t = np.asarray(tours)
+    if t.ndim != 2 or t.shape[1] != problem.n:
+        raise ProblemError(
+            f"{problem.name}: evaluate takes tours of shape (m, {problem.n}), got {t.shape}")
+    return np.array([problem.exact_length(row) for row in t], dtype=np.float64)

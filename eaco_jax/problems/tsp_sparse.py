@@ -29,7 +29,7 @@ import numpy as np
 from flax import struct
 
 from eaco_jax.problems.base import ProblemError
-from eaco_jax.problems.tsp_exact import integer_lengths, validate_tour, words_needed
+from eaco_jax.problems.tsp_exact import host_lengths, integer_lengths, validate_tour, words_needed
 from eaco_jax.problems.tsplib import pair_distances
 
 #: metrics the sparse path computes from coordinates (GEO's trigonometry is left to the dense
@@ -219,11 +219,7 @@ class SparseTSP:
         if isinstance(tours, jax.core.Tracer) or isinstance(self.coords, jax.core.Tracer):
             return _traced_lengths(self.coords, tours, self.metric, self.exact,
                                    self.sum_words)
-        t = np.asarray(tours)
-        if t.ndim != 2 or t.shape[1] != self.n:
-            raise ProblemError(
-                f"{self.name}: evaluate takes tours of shape (m, {self.n}), got {t.shape}")
-        return np.array([self.exact_length(row) for row in t], dtype=np.float64)
+        return host_lengths(self, tours)
 
     def exact_length(self, tour: Any) -> float:
         """Closed length of one tour on the host, checked (a permutation of ``0..n-1``):
