@@ -47,3 +47,14 @@ class Problem(Protocol):
     def evaluate(self, solutions: jax.Array) -> Any: ...
 
 
+class Box:
+    """``dim`` and ``dtype`` of a problem searched inside its box ``lower`` .. ``upper`` (a
+    mixin for the ``flax.struct`` problem classes that hold those arrays)."""
+
+    @property
+    def dim(self) -> int:
+        return int(self.lower.shape[-1])
+
+    @property
+    def dtype(self) -> Any:
+        return self.lower.dtype

@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from eaco_jax.problems.base import Evaluation, ProblemError
+from eaco_jax.problems.base import Box, Evaluation, ProblemError
 
 Array = jax.Array
 
@@ -51,7 +51,7 @@ def _no_constraints(x: Array) -> Array:
 
 
 @struct.dataclass(eq=False)
-class ConstrainedProblem:
+class ConstrainedProblem(Box):
     """Minimise ``objective(x)`` s.t. ``inequality(x) <= 0``, ``equality(x) == 0``, in a box.
 
     ``objective``, ``inequality`` and ``equality`` are plain JAX functions of ONE vector
@@ -93,14 +93,6 @@ class ConstrainedProblem:
         return (f"ConstrainedProblem(name={self.name!r}, dim={self.dim}, "
                 f"inequality={self.num_inequality}, equality={self.num_equality}, "
                 f"f_star={self.f_star})")
-
-    @property
-    def dim(self) -> int:
-        return int(self.lower.shape[-1])
-
-    @property
-    def dtype(self) -> Any:
-        return self.lower.dtype
 
     # ------------------------------------------------------------------ single vector
     def constraints(self, x: Array) -> tuple[Array, Array]:

@@ -63,7 +63,7 @@ from eaco_jax.gait.worlds import (
     sample_worlds,
     stream_key,
 )
-from eaco_jax.problems.base import Evaluation, ProblemError
+from eaco_jax.problems.base import Box, Evaluation, ProblemError
 
 BACKENDS = ("auto", "mjx", "native")
 PENALTIES = (None, "power", "cot")
@@ -73,7 +73,7 @@ QUALITY_SCALARS = ("energy_j", "mean_power_w", "peak_power_w", "cost_of_transpor
 
 
 @struct.dataclass
-class GaitProblem:
+class GaitProblem(Box):
     """Maximise the walked distance (minimise ``-fitness``) over gait parameters in bounds."""
 
     lower: jax.Array
@@ -106,14 +106,6 @@ class GaitProblem:
     def stochastic(self) -> bool:
         """Whether ``evaluate`` takes a ``key`` (fresh randomised worlds each evaluation)."""
         return self.robust is not None and self.robust.resample
-
-    @property
-    def dim(self) -> int:
-        return int(self.lower.shape[-1])
-
-    @property
-    def dtype(self) -> Any:
-        return self.lower.dtype
 
     @property
     def param_names(self) -> tuple[str, ...]:

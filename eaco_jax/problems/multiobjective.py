@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.problems.base import Evaluation, ProblemError
+from eaco_jax.problems.base import Box, Evaluation, ProblemError
 from eaco_jax.problems.constrained import _output_size, violation_of
 
 Array = jax.Array
@@ -38,7 +38,7 @@ def _none(x: Array) -> Array:
 
 
 @jax.tree_util.register_pytree_node_class
-class MultiObjectiveProblem:
+class MultiObjectiveProblem(Box):
     """Minimise every entry of ``objectives(x)`` s.t. ``inequality(x) <= 0``,
     ``equality(x) == 0``, in the box ``[lower, upper]``.
 
@@ -135,14 +135,6 @@ class MultiObjectiveProblem:
         return (f"MultiObjectiveProblem(name={self.name!r}, dim={self.dim}, "
                 f"objectives={self.num_objectives}, inequality={self.num_inequality}, "
                 f"equality={self.num_equality})")
-
-    @property
-    def dim(self) -> int:
-        return int(self.lower.shape[-1])
-
-    @property
-    def dtype(self) -> Any:
-        return self.lower.dtype
 
     def constraints(self, x: Array) -> tuple[Array, Array]:
         """``(g(x), h(x))`` for one vector."""

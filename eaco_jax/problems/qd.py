@@ -24,6 +24,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from eaco_jax.errors import ProblemError
+from eaco_jax.problems.base import Box
 
 Array = jax.Array
 
@@ -41,7 +42,7 @@ class QDEvaluation:
 
 
 @struct.dataclass
-class RastriginProj:
+class RastriginProj(Box):
     """Minimise Rastrigin ``10 n + sum(x^2 - 10 cos(2 pi x))`` in ``[-5.12, 5.12]^n``; the
     descriptor is ``(mean(x[:n/2]), mean(x[n/2:]))`` in ``[-5.12, 5.12]^2``.
 
@@ -59,14 +60,6 @@ class RastriginProj:
 
     kind: ClassVar[str] = "qd"
     differentiable = False
-
-    @property
-    def dim(self) -> int:
-        return int(self.lower.shape[-1])
-
-    @property
-    def dtype(self) -> Any:
-        return self.lower.dtype
 
     @property
     def num_descriptors(self) -> int:
