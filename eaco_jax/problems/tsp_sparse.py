@@ -38,8 +38,8 @@ SPARSE_METRICS = ("EUC_2D", "CEIL_2D", "ATT", "EUCLIDEAN")
 #: candidate-list length of the sparse path when none is given (Focused ACO's range 10-16)
 SPARSE_NEIGHBORS = 16
 #: from this many cities ``load_tsplib`` (and ``eaco tsp``) take the sparse path by default:
-#: the dense path's host matrices then pass ~1 GiB (16 n^2 bytes); above the largest
-#: instances the dense path was measured on (~5,900 cities, issue 33), not a measured crossing
+#: the dense path's host matrices then pass ~1 GiB (16 n^2 bytes); a round size, not a measured
+#: crossing of the two paths (docs/tsp_large.md)
 SPARSE_MIN_CITIES = 8000
 
 
