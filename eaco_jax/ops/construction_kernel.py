@@ -48,6 +48,23 @@ def _any(x: Array) -> Array:
     return jnp.max(x.astype(jnp.int32)) > 0
 
 
+def _ant_blocks(m: int, block: int) -> tuple[int, int]:
+    """The block actually used for ``m`` ants (a power of 2, at least 16, at most the next
+    power of 2 of ``m``) and the padded number of ants, a multiple of it."""
+    block = max(16, min(block, 1 << max(0, (m - 1).bit_length())))
+    return block, -(-m // block) * block
+
+
+def _triton_params(block: int, interpret: bool) -> dict:
+    """``pallas_call``'s compiler parameters on a GPU: one warp per 32 ants of a block."""
+    if interpret:
+        return {}
+    from jax.experimental.pallas import triton as pltriton
+
+    return {"compiler_params": pltriton.CompilerParams(num_warps=max(1, block // 32),
+                                                       num_stages=1)}
+
+
 def _candidate_choice(row: Array, u: Array, q0: Array, ants: Array, word_base: Array, *,
                       cand_ref, cw_ref, bits_ref, factor_ref, n: int, k: int,
                       block: int) -> tuple[Array, Array]:
@@ -199,8 +216,7 @@ def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: A
     m = starts.shape[0]
     k = candidates.shape[1]
     words = alive_bits.shape[1]
-    block = max(16, min(block, 1 << max(0, (m - 1).bit_length())))
-    m_pad = -(-m // block) * block
+    block, m_pad = _ant_blocks(m, block)
     pad = m_pad - m
     if max(n * m_pad, weights.shape[0] * n) >= 2**31:  # the kernel's flat int32 indices
         raise ValueError(f"plan 'kernel' indexes ants x cities with int32: {m} ants x {n} "
@@ -222,12 +238,6 @@ def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: A
     args.append(bits.reshape(-1))
     kernel = functools.partial(_kernel, n=n, k=k, words=words, backup=backup,
                                has_factor=has_factor, block=block, m_pad=m_pad)
-    extra = {}
-    if not interpret:
-        from jax.experimental.pallas import triton as pltriton
-
-        extra["compiler_params"] = pltriton.CompilerParams(num_warps=max(1, block // 32),
-                                                           num_stages=1)
     path, _ = pl.pallas_call(
         kernel,
         out_shape=(jax.ShapeDtypeStruct((n * m_pad,), jnp.int32),
@@ -235,7 +245,7 @@ def construct_tours_kernel(uniforms: Array, weights: Array, starts: Array, q0: A
         grid=(m_pad // block,),
         input_output_aliases={len(args) - 1: 1},
         interpret=interpret,
-        **extra,
+        **_triton_params(block, interpret),
     )(*args)
     return path.reshape(n, m_pad)[:, :m].T
 
@@ -306,8 +316,7 @@ def construct_tours_sparse_kernel(uniforms: Array, cand_w: Array, candidates: Ar
     m = starts.shape[0]
     rows = cand_w.shape[0]
     words = alive_bits.shape[1]
-    block = max(16, min(block, 1 << max(0, (m - 1).bit_length())))
-    m_pad = -(-m // block) * block
+    block, m_pad = _ant_blocks(m, block)
     pad = m_pad - m
     if max(n * m_pad, rows * k) >= 2**31:
         raise ValueError(f"plan 'kernel' indexes ants x cities with int32: {m} ants x {n} "
@@ -334,12 +343,6 @@ def construct_tours_sparse_kernel(uniforms: Array, cand_w: Array, candidates: Ar
              padded_lists(prv_l.astype(jnp.int32)).reshape(-1)]
     kernel = functools.partial(_sparse_kernel, n=n, k=k, words=words, has_factor=has_factor,
                                block=block, m_pad=m_pad, cap=cap)
-    extra = {}
-    if not interpret:
-        from jax.experimental.pallas import triton as pltriton
-
-        extra["compiler_params"] = pltriton.CompilerParams(num_warps=max(1, block // 32),
-                                                           num_stages=1)
     path, _, _, _ = pl.pallas_call(
         kernel,
         out_shape=(jax.ShapeDtypeStruct((n * m_pad,), jnp.int32),
@@ -349,6 +352,6 @@ def construct_tours_sparse_kernel(uniforms: Array, cand_w: Array, candidates: Ar
         grid=(m_pad // block,),
         input_output_aliases={first_alias: 1, first_alias + 1: 2, first_alias + 2: 3},
         interpret=interpret,
-        **extra,
+        **_triton_params(block, interpret),
     )(*args)
     return path.reshape(n, m_pad)[:, :m].T
