@@ -2,22 +2,26 @@
 
 Instances: random uniform EUC_2D instances (DyNACO's setting: integer coordinates in
 [0, 10^6), one file per ``--instance-seeds`` seed and ``--sizes`` size, written to ``--work``),
-and d15112 when a data folder holds it (``common.data_dirs``: ``$EACO_TSPLIB_DIR``,
-``shared/data/tsplib`` beside the repository, ...). Each (instance, run seed of ``--seeds``)
-is one fresh ``python -m eaco_jax tsp FILE --max-seconds S --seed SEED`` process, its wall
-clock taken from the call (start-up and compilation included); ``--seconds`` gives S per size
-(one value, or one per size), ``--eaco-args`` extra flags for every run.
+and the named TSPLIB instances of ``--instances`` (``d15112`` ships with the package; a path
+or a data folder's name works too: ``common.data_dirs``). Each (instance, run seed of
+``--seeds``) is one fresh ``python -m eaco_jax tsp FILE --max-seconds S --seed SEED`` process,
+its wall clock taken from the call (start-up and compilation included); ``--seconds`` gives S
+per size (one value, or one per size), ``--instance-seconds`` S of the named instances
+(75.9, Focused ACO's d15112 figure), ``--eaco-args`` extra flags for every run.
 
-Each row: the tour length, the gap where the optimum is known (d15112: TSPLIB's 1,573,084;
-random instances: from ``--reference FILE.json``, {"instance name": length}, e.g. LKH-3 runs),
-else the length over the Beardwood-Halton-Hammersley estimate 0.7124 sqrt(n A) of a random
-uniform optimum (an estimate, not a gap), tours/s, peak host memory (RSS) and device memory
-where the backend reports it. Instance seeds (which instances) and run seeds (which colony)
-are separate lists; nothing here chooses settings.
+Each row: the tour length; ``gap_percent`` against TSPLIB's optimum (named instances) or the
+LKH-3 tour run here (random instances with a reference in ``results/tsp_large/lkh``, written
+by ``lkh_reference.py``; ``--reference FILE.json`` replaces them), ``reference`` says which;
+for random instances also the length over the Beardwood-Halton-Hammersley estimate
+0.7124 sqrt(n A) of a random uniform optimum (an estimate, not a gap); tours/s, peak host
+memory (RSS) and device memory where the backend reports it (JAX's ``memory_stats``).
+Instance seeds (which instances) and run seeds (which colony) are separate lists; nothing
+here chooses settings. ``--append`` adds the rows to an existing ``--out`` (one file from
+several calls), ``--process-timeout`` kills a run that overruns (recorded as an error).
 
     python experiments/tsp_large.py --sizes 10000 --seconds 18 --seeds 0 1 2     # GPU
-    python experiments/tsp_large.py --sizes 10000 100000 --seconds 18 172 --seeds 0 1 2 3 4
-    python experiments/tsp_large.py --sizes 2000 --seconds 10 --seeds 0 --no-d15112   # smoke
+    python experiments/tsp_large.py --sizes --instances d15112 --seeds 0 1 2     # GPU
+    python experiments/tsp_large.py --sizes 2000 --seconds 10 --seeds 0   # CPU smoke
 """
 
 from __future__ import annotations
@@ -38,7 +42,8 @@ from common import data_dirs, write_results
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large.json"
 #: the side of the random instances' square, and the BHH constant of a random uniform tour
 SIDE, BHH = 1_000_000, 0.7124
-D15112_OPTIMUM = 1_573_084
+#: LKH-3 reference tours of the random instances (``lkh_reference.py``), one JSON each
+LKH_DIR = Path(__file__).resolve().parent / "results" / "tsp_large" / "lkh"
 
 
 def random_instance(folder: Path, n: int, seed: int) -> Path:
@@ -56,20 +61,51 @@ def random_instance(folder: Path, n: int, seed: int) -> Path:
     return path
 
 
+def reference_lengths(folder: Path = LKH_DIR) -> dict[str, int]:
+    """{instance name: LKH-3 tour length} from the stored references (empty when none)."""
+    out: dict[str, int] = {}
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        for row in json.loads(path.read_text()).get("rows", []):
+            if "length" in row:
+                out[row["instance"]] = int(row["length"])
+    return out
+
+
 def find_file(name: str) -> Path | None:
+    """A named instance: a path, the package's (``d15112`` ships with it), or a data folder's."""
+    if name.endswith(".tsp") or "/" in name:
+        return Path(name) if Path(name).is_file() else None
+    from eaco_jax.problems.tsp import bundled_path
+
+    found = bundled_path(name)
+    if found is not None:
+        return found
     for d in data_dirs():
         if (d / f"{name}.tsp").is_file():
             return d / f"{name}.tsp"
     return None
 
 
-def run_one(path: Path, seconds: float, seed: int, extra: list[str]) -> dict:
+def known_optimum(path: Path) -> float | None:
+    """TSPLIB's optimum of a named instance (the package's optima), None for others."""
+    from eaco_jax.problems.tsp import bundled_optima, large_optima
+
+    optima = {**large_optima(), **bundled_optima()}
+    return optima.get(path.stem)
+
+
+def run_one(path: Path, seconds: float, seed: int, extra: list[str],
+            timeout: float | None = None) -> dict:
     """One fresh ``eaco tsp`` process: its record (without the tour) and the wall clock."""
     with tempfile.TemporaryDirectory() as tmp:
         argv = [sys.executable, "-m", "eaco_jax", "tsp", str(path), "--max-seconds",
                 str(seconds), "--seed", str(seed), "--out", tmp, *extra]
         t0 = time.perf_counter()
-        done = subprocess.run(argv, capture_output=True, text=True)
+        try:
+            done = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return {"instance": path.stem, "seed": seed, "wall_seconds": timeout,
+                    "error": f"killed after --process-timeout {timeout} s"}
         wall = time.perf_counter() - t0
         if done.returncode:
             return {"instance": path.stem, "seed": seed, "error": done.stderr.strip()[-500:],
@@ -81,51 +117,88 @@ def run_one(path: Path, seconds: float, seed: int, extra: list[str]) -> dict:
             "history_points": len(history), "argv": argv[2:]}
 
 
-def main() -> None:
+def score(row: dict, path: Path, n: int, optimum: float | None,
+          lkh: dict[str, int]) -> dict:
+    """The row with its gaps: to TSPLIB's optimum (named instances), to the LKH-3 tour run
+    here (random instances with a stored reference) and over the BHH estimate (random)."""
+    if "error" in row:
+        return row
+    length = float(row["best_length"])
+    if optimum:
+        row["reference_length"] = optimum
+        row["reference"] = "optimum"
+        row["gap_percent"] = 100.0 * (length / optimum - 1.0)
+    elif path.stem in lkh:
+        row["reference_length"] = lkh[path.stem]
+        row["reference"] = "lkh-3"
+        row["gap_percent"] = 100.0 * (length / lkh[path.stem] - 1.0)
+    if path.stem in lkh:
+        row["lkh_length"] = lkh[path.stem]
+        row["gap_to_lkh_percent"] = 100.0 * (length / lkh[path.stem] - 1.0)
+    if path.stem.startswith("rand"):
+        row["bhh_estimate"] = BHH * math.sqrt(n * SIDE**2)
+        row["over_bhh_percent"] = 100.0 * (length / row["bhh_estimate"] - 1.0)
+    return row
+
+
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000])
+    ap.add_argument("--sizes", type=int, nargs="*", default=[10_000, 100_000],
+                    help="random uniform instance sizes (none: only --instances)")
     ap.add_argument("--seconds", type=float, nargs="+", default=[18.0, 172.0])
     ap.add_argument("--instance-seeds", type=int, nargs="+", default=[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
-    ap.add_argument("--d15112-seconds", type=float, default=75.9)
-    ap.add_argument("--no-d15112", action="store_true")
-    ap.add_argument("--reference", type=Path, help="JSON {instance: reference length}")
+    ap.add_argument("--instances", nargs="*", default=[],
+                    help="named TSPLIB instances or .tsp paths to run too (e.g. d15112)")
+    ap.add_argument("--instance-seconds", "--d15112-seconds", type=float, default=75.9,
+                    help="budget of each --instances run (Focused ACO's 75.9 s on d15112)")
+    ap.add_argument("--no-d15112", action="store_true",
+                    help="kept for recorded commands: d15112 runs only when --instances names it")
+    ap.add_argument("--reference", type=Path,
+                    help="JSON {instance: reference length}; default: the stored LKH-3 tours "
+                         "of experiments/results/tsp_large/lkh")
     ap.add_argument("--eaco-args", default="", help="extra flags for every eaco tsp run")
+    ap.add_argument("--process-timeout", type=float, default=None,
+                    help="kill a run after this many seconds (recorded as an error)")
+    ap.add_argument("--append", action="store_true",
+                    help="keep the rows already in --out (one file from several calls)")
     ap.add_argument("--work", type=Path, default=Path("out/tsp_large"))
     ap.add_argument("--out", type=Path, default=RESULTS)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     seconds = args.seconds if len(args.seconds) == len(args.sizes) else \
         [args.seconds[0]] * len(args.sizes)
-    reference = json.loads(args.reference.read_text()) if args.reference else {}
+    lkh = reference_lengths() if args.reference is None else \
+        {k: int(v) for k, v in json.loads(args.reference.read_text()).items()}
     jobs = [(random_instance(args.work, n, s), sec, n) for n, sec in zip(args.sizes, seconds,
                                                                           strict=True)
             for s in args.instance_seeds]
-    d15112 = None if args.no_d15112 else find_file("d15112")
-    if d15112 is not None:
-        jobs.append((d15112, args.d15112_seconds, 15112))
-    elif not args.no_d15112:
-        print("d15112: not in any data folder (skipped)", flush=True)
-    rows = []
+    for name in args.instances:
+        path = find_file(name)
+        if path is None:
+            raise SystemExit(f"{name}: no such instance (bundled: d15112 and the small ones; "
+                             "or pass a path to a .tsp file)")
+        jobs.append((path, args.instance_seconds, 0))
+    rows, commands = [], []
+    if args.append and args.out.is_file():
+        old = json.loads(args.out.read_text())
+        rows = list(old.get("rows", []))
+        commands = list(old.get("commands", [old.get("command")]))
+    command = " ".join([Path(sys.argv[0]).name,
+                        *(argv if argv is not None else sys.argv[1:])])
     for path, sec, n in jobs:
         for seed in args.seeds:
-            row = run_one(path, sec, seed, args.eaco_args.split())
-            if "error" not in row:
-                length = float(row["best_length"])
-                known = D15112_OPTIMUM if path.stem == "d15112" else reference.get(path.stem)
-                if known:
-                    row["reference_length"] = known
-                    row["gap_percent"] = 100.0 * (length / known - 1.0)
-                if path.stem.startswith("rand"):
-                    row["bhh_estimate"] = BHH * math.sqrt(n * SIDE**2)
-                    row["over_bhh_percent"] = 100.0 * (length / row["bhh_estimate"] - 1.0)
+            row = run_one(path, sec, seed, args.eaco_args.split(), args.process_timeout)
+            row = score(row, path, n or int(row.get("n", 0)), known_optimum(path), lkh)
+            row["command"] = command
             rows.append(row)
             show = {k: row.get(k) for k in ("instance", "seed", "best_length", "gap_percent",
-                                            "over_bhh_percent", "tours_per_second",
-                                            "peak_host_bytes", "peak_device_bytes",
-                                            "wall_seconds", "stop_reason", "error")}
+                                            "reference", "over_bhh_percent",
+                                            "tours_per_second", "peak_host_bytes",
+                                            "peak_device_bytes", "wall_seconds",
+                                            "stop_reason", "error")}
             print(json.dumps(show), flush=True)
-    write_results(args.out, rows, date=datetime.date.today().isoformat(),
-                  command=" ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+    write_results(args.out, rows, date=datetime.date.today().isoformat(), command=command,
+                  commands=[c for c in commands if c] + [command],
                   seeds={"instance_seeds": args.instance_seeds, "run_seeds": args.seeds})
     print(f"wrote {args.out}")
 

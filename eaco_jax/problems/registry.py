@@ -61,12 +61,12 @@ def get(name: str, /, **kwargs: Any) -> Any:
     (TSPLIB), ``"g10"`` or ``"G2"`` (CEC2006).
     """
     from eaco_jax.problems.cec2006 import BUILDERS, PAPER_NAMES
-    from eaco_jax.problems.tsp import bundled_instances
+    from eaco_jax.problems.tsp import bundled_path
 
     text = str(name)
     if text in _FAMILIES:
         return _factory(text)(**kwargs)
-    if text in bundled_instances() or text.endswith(".tsp") or Path(text).suffix == ".tsp":
+    if bundled_path(text) is not None or text.endswith(".tsp") or Path(text).suffix == ".tsp":
         return _factory("tsp")(text, **kwargs)
     if text.lower() in BUILDERS or text.upper() in PAPER_NAMES:
         if kwargs:

@@ -43,18 +43,43 @@ from eaco_jax.problems.tsp_exact import (  # noqa: F401 - re-exported
 from eaco_jax.problems.tsplib import COORD_TYPES, coord_distances, distance_matrix, read_tsplib
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "tsplib"
+#: instances too large for a distance matrix (sparse path only), kept apart so that code
+#: walking the bundled instances with dense matrices never meets them
+LARGE_DIR = DATA_DIR / "large"
 DEFAULT_NEIGHBORS = 20
 
 
 def bundled_instances() -> list[str]:
-    """Names of the TSPLIB instances shipped with the package."""
+    """Names of the TSPLIB instances shipped with the package (dense-sized ones)."""
     return sorted(p.stem for p in DATA_DIR.glob("*.tsp"))
+
+
+def large_instances() -> list[str]:
+    """Names of the shipped instances past the dense path's size (``data/tsplib/large``)."""
+    return sorted(p.stem for p in LARGE_DIR.glob("*.tsp"))
+
+
+def _optima(folder: Path) -> dict[str, float]:
+    with open(folder / "optima.csv", newline="") as fh:
+        return {row["name"]: float(row["optimal_tour_length"]) for row in csv.DictReader(fh)}
 
 
 def bundled_optima() -> dict[str, float]:
     """Known optimal tour lengths of the bundled instances (``data/tsplib/optima.csv``)."""
-    with open(DATA_DIR / "optima.csv", newline="") as fh:
-        return {row["name"]: float(row["optimal_tour_length"]) for row in csv.DictReader(fh)}
+    return _optima(DATA_DIR)
+
+
+def large_optima() -> dict[str, float]:
+    """Known optimal tour lengths of the large instances (``data/tsplib/large/optima.csv``)."""
+    return _optima(LARGE_DIR)
+
+
+def bundled_path(name: str) -> Path | None:
+    """The shipped ``.tsp`` file of a bare instance name, small or large; None if none."""
+    for folder in (DATA_DIR, LARGE_DIR):
+        if (folder / f"{name}.tsp").is_file():
+            return folder / f"{name}.tsp"
+    return None
 
 
 def nearest_neighbors(dist: np.ndarray, k: int) -> np.ndarray:
@@ -249,11 +274,12 @@ def load_tsplib(name_or_path: str | Path, neighbors: int | None = None,
     ``neighbors``: candidate-list length (default 20 dense, 16 sparse).
     """
     text = str(name_or_path)
-    bundled = DATA_DIR / f"{text}.tsp"
+    bundled = bundled_path(text)
     if "/" not in text and "\\" not in text and not text.endswith(".tsp"):
-        if not bundled.is_file():
+        if bundled is None:
             raise ProblemError(
-                f"unknown TSPLIB instance {text!r}; bundled: {', '.join(bundled_instances())}"
+                f"unknown TSPLIB instance {text!r}; bundled: "
+                f"{', '.join(bundled_instances() + large_instances())}"
                 " (or pass a path to a .tsp file)"
             )
         path = bundled
@@ -261,7 +287,7 @@ def load_tsplib(name_or_path: str | Path, neighbors: int | None = None,
         path = Path(text)
     inst = read_tsplib(path)
     name = inst.name if inst.name else path.stem
-    optima = bundled_optima()
+    optima = {**large_optima(), **bundled_optima()}
     optimum = optima.get(name, optima.get(path.stem))
     from eaco_jax.problems import tsp_sparse
     from eaco_jax.problems.tsplib import check_dimension

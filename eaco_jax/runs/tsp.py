@@ -323,12 +323,12 @@ def peak_memory() -> dict[str, int | None]:
 
 def instance_coords(instance: str) -> np.ndarray | None:
     """City coordinates of a bundled name or ``.tsp`` path (None for EXPLICIT matrices)."""
-    from eaco_jax.problems.tsp import DATA_DIR
+    from eaco_jax.problems.tsp import DATA_DIR, bundled_path
     from eaco_jax.problems.tsplib import read_tsplib
 
     text = str(instance)
     bare = "/" not in text and "\\" not in text and not text.endswith(".tsp")
-    path = DATA_DIR / f"{text}.tsp" if bare else Path(text)
+    path = (bundled_path(text) or DATA_DIR / f"{text}.tsp") if bare else Path(text)
     return read_tsplib(path).coords
 
 
