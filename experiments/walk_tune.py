@@ -9,7 +9,8 @@ plan refuses. Worlds: the *selection* stream of run seed 0 (the report uses the 
 round: the gait library's planning entry is fitted from it), ``walk`` with the library's
 planning entry (the check that the fitted model holds). Each config is a set of
 :class:`~eaco_jax.gait.walk_route.Controller` fields over the defaults; every config walks
-the same routes in the same worlds. Writes --out (device, versions, command, date): per
+the same routes in the same worlds, with each gait library of ``--gaits`` (routes planned once,
+with the shipped library's planning entry). Writes --out (device, versions, command, date): per
 config the successes, falls, contacts, walked / planned time over all walks and the time
 model fitted to them (:func:`time_model`).
 """
@@ -56,6 +57,8 @@ def main() -> None:
     ap.add_argument("--configs", default="[{}]", help="JSON list of Controller field sets")
     ap.add_argument("--speeds", default="walk", help="what the planner prices (eaco walk "
                     "--speeds): 'walk' or a gait speed table such as 'nao'")
+    ap.add_argument("--gaits", default="nao", help="comma-separated gait libraries (a shipped "
+                    "name or a JSON file, as eaco walk --gaits): every config walks with each")
     ap.add_argument("--stream", default="selection", choices=("selection", "optimisation"))
     ap.add_argument("--out", type=Path, default=HERE / "results" / "walk" / "tuning.json")
     args = ap.parse_args()
@@ -66,7 +69,7 @@ def main() -> None:
     from eaco_jax.runs import walk as rw
 
     spec = load_robot("nao")
-    gaits = wr.load_walk_gaits("nao")
+    libraries = [(g, wr.load_walk_gaits(g)) for g in args.gaits.split(",")]
     configs = json.loads(args.configs)
     t0 = time.perf_counter()
     setups = []
@@ -95,7 +98,7 @@ def main() -> None:
                                                  - np.pi).sum()),
                         "planned_time_s": planned}
     rows = []
-    for cfg in configs:
+    for (lib, gaits), cfg in ((lg, c) for lg in libraries for c in configs):
         ctrl = wr.Controller(**cfg)
         walks = []
         for name, scene, route, planned, model, max_time, inputs in setups:
@@ -108,7 +111,7 @@ def main() -> None:
                                                    "gait_switches", "mode_seconds")}})
         ok = [w for w in walks if w["success"]]
         ratio = [w["walked_time_s"] / w["planned_time_s"] for w in ok]
-        row = {"config": cfg, "n": len(walks), "successes": len(ok),
+        row = {"config": cfg, "gaits": lib, "n": len(walks), "successes": len(ok),
                "falls": sum(w["fell"] for w in walks),
                "contacts": sum(w["contact"] for w in walks),
                "not_reached": sum(not w["reached"] for w in walks),
