@@ -49,6 +49,10 @@ def main() -> None:
     ap.add_argument("--ants", type=int, default=16)
     ap.add_argument("--worlds", type=int, default=8)
     ap.add_argument("--aggregate", default="cvar", choices=("cvar", "worst", "mean"))
+    ap.add_argument("--latency", type=int, default=None, help="worlds' latency bound "
+                    "(control steps; default RobustConfig's): harsher worlds fall more often")
+    ap.add_argument("--target-noise", type=float, default=None, help="worlds' target noise "
+                    "(rad; default RobustConfig's)")
     ap.add_argument("--horizon", type=float, default=12.0)
     ap.add_argument("--segments", type=int, default=6)
     ap.add_argument("--error-deg", type=float, default=75.0)
@@ -72,7 +76,9 @@ def main() -> None:
     library = json.loads(LIBRARY.read_text())
     init = np.asarray(library["gaits"]["forward"]["vector"], np.float32)
     steer = SteerConfig(segments=args.segments, error_deg=args.error_deg)
-    robust = RobustConfig(R=args.worlds, aggregate=args.aggregate, seed=args.seed)
+    harsh = {k: v for k, v in (("latency", args.latency), ("target_noise", args.target_noise))
+             if v is not None}
+    robust = RobustConfig(R=args.worlds, aggregate=args.aggregate, seed=args.seed, **harsh)
     problem = make_steered_problem("nao", backend=args.backend, impl=args.impl,
                                    horizon=args.horizon, robust=robust, steer=steer)
     lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
@@ -89,6 +95,7 @@ def main() -> None:
     cands = np.concatenate([init[None], archive[: args.finalists]])
     cands = np.clip(cands, np.asarray(search.lower), np.asarray(search.upper))
     cands[0] = init  # the library's gait as it is (it may sit outside the narrowed box)
+    # the preselection walks in the worlds the walker meets (the default ranges)
     check = problem.replace(robust=RobustConfig(R=args.check_worlds, seed=args.seed))
     run = jax.jit(lambda x, k: check.rollout(x, check.worlds(k)))
     out = jax.tree.map(np.asarray, run(jnp.asarray(cands),
