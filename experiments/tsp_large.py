@@ -141,6 +141,27 @@ def score(row: dict, path: Path, n: int, optimum: float | None,
     return row
 
 
+def rescore(source: Path, out: Path, lkh: dict[str, int], argv: list[str] | None) -> None:
+    """The rows of an earlier result file scored again (a reference stored since), written to
+    ``out`` with the source file's command and this one."""
+    old = json.loads(source.read_text())
+    rows = []
+    for row in old["rows"]:
+        path = Path(f"{row['instance']}.tsp")
+        n = int(row.get("n") or 0)
+        rows.append(score(dict(row), path, n, known_optimum(path), lkh))
+    command = " ".join([Path(sys.argv[0]).name, *(argv if argv is not None else sys.argv[1:])])
+    write_results(out, rows, date=datetime.date.today().isoformat(), command=command,
+                  source={"file": str(source), "command": old.get("command"),
+                          "date": old.get("date"), "info": old.get("info")},
+                  seeds=old.get("seeds"))
+    for row in rows:
+        print(json.dumps({k: row.get(k) for k in ("instance", "seed", "best_length",
+                                                   "gap_percent", "reference",
+                                                   "over_bhh_percent")}))
+    print(f"wrote {out}")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="*", default=[10_000, 100_000],
@@ -162,6 +183,9 @@ def main(argv: list[str] | None = None) -> None:
                     help="kill a run after this many seconds (recorded as an error)")
     ap.add_argument("--append", action="store_true",
                     help="keep the rows already in --out (one file from several calls)")
+    ap.add_argument("--rescore", type=Path,
+                    help="run nothing: score the rows of this earlier result file against "
+                         "today's references and write them to --out")
     ap.add_argument("--work", type=Path, default=Path("out/tsp_large"))
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args(argv)
@@ -169,6 +193,9 @@ def main(argv: list[str] | None = None) -> None:
         [args.seconds[0]] * len(args.sizes)
     lkh = reference_lengths() if args.reference is None else \
         {k: int(v) for k, v in json.loads(args.reference.read_text()).items()}
+    if args.rescore:
+        rescore(args.rescore, args.out, lkh, argv)
+        return
     jobs = [(random_instance(args.work, n, s), sec, n) for n, sec in zip(args.sizes, seconds,
                                                                           strict=True)
             for s in args.instance_seeds]

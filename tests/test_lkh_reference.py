@@ -159,3 +159,25 @@ def test_d15112_ships_with_an_optimum_between_its_spanning_tree_and_a_tour():
     curve = pair_distances(xy[tour], xy[np.roll(tour, -1)], "EUC_2D").sum()
     assert tree <= problem.optimum <= curve, (tree, curve)
     assert problem.optimum >= 1.05 * tree  # a tour beats its tree by a margin on d15112
+
+
+def test_rescore_adds_the_lkh_gap_to_an_earlier_file(scripts, tmp_path):
+    _, large = scripts
+    earlier = {"command": "tsp_large.py --sizes 10000", "date": "2026-11-25", "info": {},
+               "seeds": {"run_seeds": [0]},
+               "rows": [{"instance": "rand10000_s0", "n": 10000, "seed": 0,
+                         "best_length": 75_000_000},
+                        {"instance": "d15112", "n": 15112, "seed": 0,
+                         "best_length": 1_600_000},
+                        {"instance": "rand10000_s0", "seed": 1, "error": "killed"}]}
+    (tmp_path / "old.json").write_text(json.dumps(earlier))
+    large.main(["--rescore", str(tmp_path / "old.json"), "--out", str(tmp_path / "new.json")])
+    new = json.loads((tmp_path / "new.json").read_text())
+    rand, d15112, failed = new["rows"]
+    lkh = large.reference_lengths()["rand10000_s0"]
+    assert rand["reference"] == "lkh-3"
+    assert rand["gap_percent"] == pytest.approx(100 * (75_000_000 / lkh - 1))
+    assert d15112["reference"] == "optimum"
+    assert d15112["gap_percent"] == pytest.approx(100 * (1_600_000 / 1_573_084 - 1))
+    assert "gap_percent" not in failed
+    assert new["source"]["command"] == earlier["command"]
