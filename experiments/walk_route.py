@@ -2,6 +2,7 @@
 
     python experiments/walk_route.py --worlds 20              # default + 10 random scenes
     python experiments/walk_route.py --scenes default --worlds 2   # a smoke test
+    python experiments/walk_route.py --backend mjx --impl warp --worlds 100   # MJX, a GPU
 
 Scenes: the shipped default and the first ``--random`` scenes ``random_scene(SEED)`` for SEED
 from 1000 on that the walking robot's plan accepts (it refuses a goal walled in once obstacles
@@ -12,7 +13,9 @@ were chosen on ``random_scene(2004..2009)`` in selection-stream worlds
 colony, plan seed 0, 150 iterations, pricing the gait library's walking model (``eaco walk
 --speeds walk``). Worlds: the test stream of run seed 0 (nothing is chosen on them), batch 0,
 the same worlds for every scene. One JSON per scene under experiments/results/walk/ plus
-summary.json (device, versions, command, date).
+summary.json (device, versions, command, date); ``--backend mjx`` walks the nominal and all of a
+scene's worlds in one batched MJX call and writes under experiments/results/walk_mjx/ (the
+worlds are the native backend's for the same ``--worlds``: ``sample_worlds`` of ``n`` worlds).
 """
 
 from __future__ import annotations
@@ -32,14 +35,28 @@ from eaco_jax.runs import get
 HERE = Path(__file__).resolve().parent
 
 
+def _relative(path: Path) -> str:
+    """``path`` relative to the repository where it lies inside it."""
+    try:
+        return str(path.resolve().relative_to(HERE.parent))
+    except ValueError:
+        return str(path)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenes", default=None, help="comma-separated scenes (default: "
                     "'default' and --random scenes from random:1000 on)")
     ap.add_argument("--random", type=int, default=10)
     ap.add_argument("--worlds", type=int, default=20)
-    ap.add_argument("--out", type=Path, default=HERE / "results" / "walk")
+    ap.add_argument("--backend", default="native", choices=("native", "mjx"))
+    ap.add_argument("--impl", default="jax", choices=("jax", "warp"),
+                    help="MJX implementation (--backend mjx)")
+    ap.add_argument("--out", type=Path, default=None, help="default: experiments/results/"
+                    "walk, or walk_mjx with --backend mjx")
     args = ap.parse_args()
+    if args.out is None:
+        args.out = HERE / "results" / ("walk" if args.backend == "native" else "walk_mjx")
     kind = get("walk")
     rows = []
     t0 = time.perf_counter()
@@ -51,7 +68,8 @@ def main() -> None:
     for name in names:
         folder = args.out / name.replace(":", "_")
         settings = kind.make_settings({"scene": name, "worlds": args.worlds,
-                                       "out": str(folder)})
+                                       "out": str(folder), "backend": args.backend,
+                                       "impl": args.impl})
         try:
             rec = kind.run(settings)
         except ProblemError as err:
@@ -63,7 +81,8 @@ def main() -> None:
             continue
         print(kind.summary(rec), flush=True)
         w = rec["worlds"]
-        rows.append({"scene": name, "planned_time_s": rec["planning"]["planned_time_s"],
+        rows.append({"scene": name, "seconds": rec["seconds"],
+                     "planned_time_s": rec["planning"]["planned_time_s"],
                      "plan_gap_percent": rec["planning"].get("gap_percent"),
                      "nominal_success": rec["nominal"]["success"],
                      "nominal_walked_time_s": rec["nominal"]["walked_time_s"],
@@ -74,7 +93,7 @@ def main() -> None:
                      **{k: v for k, v in w.items() if k != "walks"},
                      "closest_approach_m_successes": [x["closest_approach_m"]
                                                       for x in w["walks"] if x["success"]],
-                     "file": str((folder / "walk.json").relative_to(HERE.parent))})
+                     "file": _relative(folder / "walk.json")})
     done = [r for r in rows if "skipped" not in r]
     total = {"n": sum(r["n"] for r in done), "successes": sum(r["successes"] for r in done),
              "falls": sum(r["falls"] for r in done), "contacts": sum(r["contacts"] for r in done),
@@ -99,6 +118,7 @@ def main() -> None:
     write_json(args.out / "summary.json", {
         "command": "python experiments/walk_route.py " + " ".join(sys.argv[1:]),
         "date": str(date.today()), "device": device_info(), "seconds": time.perf_counter() - t0,
+        "backend": "native" if args.backend == "native" else f"mjx-{args.impl}",
         "seeds": {"plan": "path colony seed 0", "worlds": "test stream of run seed 0, batch 0",
                   "scenes": "default + random_scene(1000..) (planning used 0-24 and 100-124)",
                   "tuned_on": "controller settings and the walking model: random_scene("

@@ -92,7 +92,7 @@ DOCS = {
     "path": "Plan the shortest collision-free path from start to goal among obstacles.",
     "gait": "Optimise a walking gait with the EACO colony on batched physics.",
     "gait-eval": "Re-simulate stored gait parameters: speed, distance, fall, drift.",
-    "walk": "Plan a route through a scene, then walk it with the NAO on native MuJoCo.",
+    "walk": "Plan a route through a scene, then walk it with the NAO on native MuJoCo or MJX.",
 }
 
 

@@ -1,4 +1,6 @@
-"""The ``walk`` run: plan a route through a scene, then let the NAO walk it on native MuJoCo.
+"""The ``walk`` run: plan a route through a scene, then let the NAO walk it on native MuJoCo
+or on MJX (``--backend mjx``: every world in one batched, jitted call, ``--impl warp`` for MuJoCo
+Warp on a GPU; :mod:`eaco_jax.gait.walk_route_mjx`).
 
 ``eaco walk SCENE`` (a scene JSON file, ``default`` or ``random:SEED``) plans the least walking
 time route with ``--planner`` (the path colony, the path GA or the exact yardstick) and walks it
@@ -31,6 +33,8 @@ from eaco_jax.errors import ConfigError
 from eaco_jax.runs.base import Built, RunKind, check_out, check_settings, setting
 
 PLANNERS = ("path-eaco", "path-ga", "optimal")
+BACKENDS = ("native", "mjx")
+IMPLS = ("jax", "warp")
 RAMP_MODES = ("avoid", "cross")
 PLAN_ITERATIONS = 150
 
@@ -73,6 +77,11 @@ class WalkSettings:
     min_step: float = setting(0.35, "controller: shortest forward step, a fraction of the "
                               "gait's")
     blend_cycles: float = setting(0.5, "controller: step cycles a gait change blends over")
+    backend: str = setting("native", "physics: native MuJoCo (one world at a time) or MJX "
+                           "(the nominal and every randomised world in one batched call)",
+                           choices=BACKENDS)
+    impl: str = setting("jax", "MJX implementation (--backend mjx): jax, or warp (MuJoCo "
+                        "Warp, CUDA only)", choices=IMPLS)
     out: str | None = setting(None, "folder for walk.json and walk.png")
 
     def __post_init__(self) -> None:
@@ -211,9 +220,13 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
     heading = wr.start_heading(original, route)
     model = sw.scene_model(original, spec, start_heading=heading)
     t0 = time.perf_counter()
-    nominal = wr.walk(original, route, spec, gaits, ctrl, max_time=max_time, model=model)
     walks: list[dict[str, Any]] = []
-    if s.worlds:
+    if s.backend == "mjx":
+        nominal, walks = _walk_mjx(s, original, route, spec, gaits, ctrl, model, heading,
+                                   max_time, planned)
+    else:
+        nominal = wr.walk(original, route, spec, gaits, ctrl, max_time=max_time, model=model)
+    if s.worlds and s.backend == "native":
         steps = int(math.ceil(max_time / spec.control_dt))
         push_steps = int(math.ceil(planned / spec.control_dt))
         inputs, _ = wr.sample_walk_worlds(model, spec, int(s.worlds), steps, push_steps,
@@ -228,7 +241,7 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
         "scene": original.name,
         "scene_source": s.scene,
         "robot": spec.name,
-        "backend": "native",
+        "backend": s.backend if s.backend == "native" else f"mjx-{s.impl}",
         "planning": {**plan_info, "clearance_m": scene.clearance, "ramps": s.ramps,
                      "speeds": s.speeds,
                      "speed_mps": float(table.speed(0.0)),
@@ -243,7 +256,10 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
         "nominal": nominal,
         "settings": {f.name: getattr(s, f.name) for f in dataclasses.fields(s)},
         "seconds": seconds,
-        "device": f"CPU ({jax.devices('cpu')[0].platform}), native MuJoCo, one thread",
+        "device": (f"CPU ({jax.devices('cpu')[0].platform}), native MuJoCo, one thread"
+                   if s.backend == "native" else
+                   f"{jax.devices()[0].device_kind} ({jax.devices()[0].platform}), MJX "
+                   f"impl={s.impl}, {1 + int(s.worlds)} worlds in one call"),
     }
     if s.worlds:
         record["worlds"] = {"stream": s.stream, "seed": int(s.seed),
@@ -256,6 +272,40 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
         write_json(folder / "walk.json", record)
         draw(original, record, folder / "walk.png")
     return record
+
+
+def _walk_mjx(s: WalkSettings, scene: Any, route: np.ndarray, spec: Any, gaits: Any,
+              ctrl: Any, model: Any, heading: float, max_time: float,
+              planned: float) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The nominal walk and one per randomised world, all in one batched MJX call (the
+    worlds those of the native backend for the same ``--worlds``, ``--seed``, ``--stream``)."""
+    from eaco_jax.gait import walk_route_mjx as wm
+
+    if s.worlds:
+        push_steps = int(math.ceil(planned / spec.control_dt))
+        batch, _ = wm.world_batch(model, spec, int(s.worlds), push_steps, route[0], heading,
+                                  seed=int(s.seed), stream=s.stream)
+        batch = wm.with_nominal(batch, model, spec, route[0], heading)
+    else:
+        batch = wm.nominal_batch(model, spec, route[0], heading)
+    out = wm.walk_batch(scene, route, spec, gaits, ctrl, batch, max_time=max_time,
+                        model=model, impl=s.impl)
+    recs = wm.records(out, route)
+    nominal = recs[0]
+    walks = []
+    for i, w in enumerate(recs[1:]):
+        w["trajectory"] = _every(w["trajectory"], 2)  # 0.2 s, as the native worlds' 10 steps
+        w["world"] = i
+        walks.append(w)
+    return nominal, walks
+
+
+def _every(rows: list[list[float]], k: int) -> list[list[float]]:
+    """Every ``k``-th trajectory row, the last one kept."""
+    out = rows[k - 1 :: k]
+    if rows and (not out or out[-1] is not rows[-1]):
+        out.append(rows[-1])
+    return out
 
 
 def draw(scene: Any, record: dict[str, Any], path: str | Path | None = None) -> Any:
@@ -290,7 +340,8 @@ def draw(scene: Any, record: dict[str, Any], path: str | Path | None = None) -> 
     title = f"{record['scene']}: walk the planned route"
     if "worlds" in record:
         wd = record["worlds"]
-        title += f" ({wd['successes']}/{wd['n']} worlds succeed)"
+        title += f" ({wd['successes']}/{wd['n']} worlds succeed"
+        title += ", MJX)" if record.get("backend", "native") != "native" else ")"
     ax.set_title(title, fontsize=10)
     ax.set_aspect("equal")
     ax.autoscale_view()

@@ -1,0 +1,172 @@
+"""Route walking on MJX (issue #32, item 4): the analytic obstacle distances against MuJoCo's
+``mj_geomDistance``, the JAX controller against the native one, a short walk against the
+native walker, the batched walk against the unbatched one, and a walk into an obstacle."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from eaco_jax.gait import scene_world as sw
+from eaco_jax.gait import walk_route as wr
+from eaco_jax.gait import walk_route_mjx as wm
+from eaco_jax.gait.robot import load_robot
+from eaco_jax.problems.scenes import Obstacle, Scene
+
+BOX = ((1.5, -0.6), (2.0, -0.6), (2.0, 0.6), (1.5, 0.6))  # a rectangle: a box geom
+PENTAGON = ((0.55, 0.35), (0.95, 0.5), (1.0, 0.9), (0.7, 1.1), (0.45, 0.8))  # a mesh geom
+TINY = Scene(name="tiny", bounds=(0.0, -2.0, 4.0, 2.0), start=(0.3, 0.0), goal=(3.3, 0.0),
+             obstacles=(Obstacle(BOX, 0.5),))
+AROUND = np.array([[0.3, 0.0], [1.3, -0.95], [2.2, -0.95], [3.3, 0.0]])  # around the box
+THROUGH = np.array([[0.3, 0.0], [0.9, 0.0], [1.4, 0.0], [3.3, 0.0]])  # into it
+WALK_TIME = 3.0  # s: three decisions steer the first corner
+
+#: torso path MJX (float32) vs native (float64) on the same model and controller: measured
+#: under 1e-5 m over WALK_TIME (a nominal walk, no contact events); 1 mm is a hundredth of a
+#: step's length and still fails for one control step's shift of any decision
+PATH_TOL = 1e-3
+
+
+@pytest.fixture(scope="module")
+def nao():
+    return load_robot("nao")
+
+
+# --------------------------------------------------------------------------- geometry
+def _random_poses(model, rng, n):
+    """Robot poses near the obstacles: positions, yaw, height and joints drawn at random."""
+    data = mujoco.MjData(model)
+    for _ in range(n):
+        data.qpos[:] = model.qpos0
+        data.qpos[:2] = rng.uniform([0.2, -0.3], [2.3, 1.4])
+        data.qpos[2] = rng.uniform(0.2, 0.9)  # from the soles on the floor to above the top
+        yaw = rng.uniform(-math.pi, math.pi)
+        data.qpos[3:7] = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+        data.qpos[7:] = model.qpos0[7:] + rng.normal(0.0, 0.5, model.nq - 7)
+        mujoco.mj_forward(model, data)
+        yield data
+
+
+def test_obstacle_distances_are_mujocos_geom_distances(nao):
+    scene = Scene(name="g", bounds=(0.0, -1.0, 3.0, 2.0), start=(0.0, 0.0), goal=(2.8, 1.8),
+                  obstacles=(Obstacle(BOX, 0.5), Obstacle(PENTAGON, 0.3)))
+    model = sw.scene_model(scene, nao)
+    robot, obst = sw.robot_geom_ids(model), sw.geom_ids(model, "obstacle")
+    geoms, prisms = wm._RobotGeoms.of(model), wm._Prisms.of(scene.obstacles)
+    fn = jax.jit(lambda xp, xm: wm.obstacle_distances(xp, xm, geoms, prisms, 1.0))
+    apart = touching = 0
+    for data in _random_poses(model, np.random.default_rng(0), 150):
+        native = sw.obstacle_distances(model, data, robot, obst, np.array([True, True]), 1.0)
+        ours = np.asarray(fn(jnp.asarray(data.geom_xpos, jnp.float32),
+                             jnp.asarray(data.geom_xmat, jnp.float32)))
+        for k in range(2):
+            if native[k] > 1e-4:
+                apart += 1
+                assert ours[k] == pytest.approx(native[k], abs=2e-5), (k, native, ours)
+            elif native[k] < -1e-4:
+                touching += 1
+                assert ours[k] <= 0.0, (k, native, ours)
+    assert apart > 100 and touching > 20  # both cases seen, on both obstacles
+
+
+# --------------------------------------------------------------------------- controller
+def test_jax_controller_decides_as_the_native_one():
+    rng = np.random.default_rng(1)
+    c = wr.Controller(turn_deg=60.0, resume_deg=10.0)
+    choose = jax.jit(lambda e, m: wm._choose(e, m, c))
+    for _ in range(200):
+        err, mode = float(rng.uniform(-math.pi, math.pi)), int(rng.integers(3))
+        want = wr.choose(err, wr.MODES[mode], c)
+        got = choose(jnp.float32(err), jnp.int32(mode))
+        assert wr.MODES[int(got[0])] == want.mode
+        assert float(got[1]) == pytest.approx(want.steer, abs=1e-5)
+        assert float(got[2]) == pytest.approx(want.step, abs=1e-5)
+    route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.5, 2.5]])
+    ctrl = wr.Controller()
+    track = jax.jit(lambda s, p: wm._track(jnp.asarray(route, jnp.float32), s, p, ctrl))
+    for _ in range(200):
+        seg, pos = int(rng.integers(3)), rng.uniform(-0.5, 2.8, 2)
+        want_seg, want_target = wr.track(route, seg, pos, ctrl)
+        got_seg, got_target = track(jnp.int32(seg), jnp.asarray(pos, jnp.float32))
+        assert int(got_seg) == want_seg
+        np.testing.assert_allclose(np.asarray(got_target), want_target, atol=1e-5)
+
+
+# --------------------------------------------------------------------------- walks
+@pytest.fixture(scope="module")
+def tiny(nao):
+    """The tiny scene's model and the nominal walk around the box on both backends."""
+    gaits, ctrl = wr.load_walk_gaits("nao"), wr.Controller()
+    heading = wr.start_heading(TINY, AROUND)
+    model = sw.scene_model(TINY, nao, start_heading=heading)
+    dec: list = []
+    native = wr.walk(TINY, AROUND, nao, gaits, ctrl, max_time=WALK_TIME, model=model,
+                     decisions=dec)
+    batch = wm.nominal_batch(model, nao, AROUND[0], heading)
+    out = wm.walk_batch(TINY, AROUND, nao, gaits, ctrl, batch, max_time=WALK_TIME,
+                        model=model)
+    return dict(model=model, gaits=gaits, ctrl=ctrl, native=native, decisions=dec, out=out)
+
+
+@pytest.mark.slow
+def test_mjx_walk_follows_the_native_walk_in_the_nominal_world(tiny):
+    rec = wm.records(tiny["out"], AROUND)[0]
+    nat = tiny["native"]
+    a, b = np.asarray(nat["trajectory"]), np.asarray(rec["trajectory"])
+    assert a.shape == b.shape and np.array_equal(a[:, 0], b[:, 0])
+    assert np.max(np.linalg.norm(a[:, 1:3] - b[:, 1:3], axis=1)) < PATH_TOL
+    ours = wm.decisions(tiny["out"])
+    assert len(ours) == len(tiny["decisions"]) >= 7
+    for n, m in zip(tiny["decisions"], ours, strict=True):
+        assert (n[0], n[1], n[3]) == (m[0], m[1], m[3])  # time, segment, mode
+        assert m[2] == pytest.approx(n[2], abs=1e-3)  # heading error
+        assert (m[4], m[5]) == pytest.approx((n[4], n[5]), abs=1e-3)  # steer, step
+    assert any(abs(d[4]) > 0.5 for d in ours)  # the corner is steered
+    for key in ("success", "fell", "contact", "walked_time_s", "gait_switches"):
+        assert rec[key] == nat[key], key
+    assert rec["closest_approach_m"] == pytest.approx(nat["closest_approach_m"], abs=1e-3)
+
+
+@pytest.mark.slow
+def test_batched_walk_gives_each_world_its_unbatched_result(nao, tiny):
+    """Worlds 0 and 1 of two, with the nominal world, in one call of three; world 1 alone
+    in a call of one: the same walk, and the nominal row the same as walked alone."""
+    model, gaits, ctrl = tiny["model"], tiny["gaits"], tiny["ctrl"]
+    heading = wr.start_heading(TINY, AROUND)
+    push = int(WALK_TIME / nao.control_dt)
+    both, _ = wm.world_batch(model, nao, 2, push, AROUND[0], heading)
+    three = wm.walk_batch(TINY, AROUND, nao, gaits, ctrl,
+                          wm.with_nominal(both, model, nao, AROUND[0], heading),
+                          max_time=WALK_TIME, model=model)
+    one, _ = wm.world_batch(model, nao, 2, push, AROUND[0], heading, index=[1])
+    alone = wm.walk_batch(TINY, AROUND, nao, gaits, ctrl, one, max_time=WALK_TIME,
+                          model=model)
+    recs, single = wm.records(three, AROUND), wm.records(alone, AROUND)[0]
+    nominal = wm.records(tiny["out"], AROUND)[0]
+    for got, want in ((recs[2], single), (recs[0], nominal)):
+        np.testing.assert_allclose(np.asarray(got["trajectory"]),
+                                   np.asarray(want["trajectory"]), atol=1e-4)
+        assert got["closest_approach_m"] == pytest.approx(want["closest_approach_m"],
+                                                          abs=1e-4)
+    # the worlds differ from the nominal one and from each other
+    ends = [np.asarray(r["trajectory"])[-1, 1:3] for r in recs]
+    assert min(np.linalg.norm(ends[i] - ends[j]) for i, j in ((0, 1), (0, 2), (1, 2))) > 1e-3
+
+
+def test_walk_into_an_obstacle_is_a_contact(nao):
+    """A route through the box: the walk touches it (the nominal world, MJX-JAX on CPU)."""
+    gaits, ctrl = wr.load_walk_gaits("nao"), wr.Controller()
+    model = sw.scene_model(TINY, nao)
+    batch = wm.nominal_batch(model, nao, THROUGH[0], 0.0)
+    out = wm.walk_batch(TINY, THROUGH, nao, gaits, ctrl, batch, max_time=WALK_TIME,
+                        model=model)
+    rec = wm.records(out, THROUGH)[0]
+    assert rec["contact"] and rec["contact_obstacle"] == 0 and not rec["success"]
+    assert rec["closest_approach_m"] <= 0.0
+    x_touch = np.interp(rec["contact_time_s"], *np.asarray(rec["trajectory"])[:, :2].T)
+    assert 1.0 < x_touch < 1.5  # the torso is just short of the box's face at x = 1.5
