@@ -17,7 +17,18 @@ Postures (no stepping: step length, foot lift, sway and arm swing 0):
   otherwise, its hip-roll compensation and ankle-roll offset included) at each stance height;
 * ``flat``: the same with the roll compensations 0 (the IK's own flat-foot roll angles);
 * ``keyframe``: the robot's standing keyframe held constant;
-* ``width``: ``flat`` at hip height 0.21 m with the feet closer / wider (``step_width``).
+* ``width``: ``flat`` at hip height 0.21 m with the feet closer / wider (``step_width``);
+* ``hip-roll-comp-only`` / ``ankle-roll-comp-only``: one compensation at a time;
+* ``feasibility-stand-kp/2``: a position loop of half the gain.
+
+And the stored walking gait, to see where its heat comes from: per joint, the share of the
+copper loss in torque variation faster than one control step (``fast_loss_share``: the loss
+less the loss of the torque averaged over each 20 ms control step) and the torque's sign
+changes per second, at physics steps of 4, 2 and 1 ms, with the targets held for a control
+step (``walk-stored-gait``) or interpolated linearly to the next one
+(``walk-stored-gait-interpolated``, what NAO's DCM does: nao.json ``sources.targets``). All
+runs here set the targets per physics step themselves (held unless a row says
+``interpolate``), whatever the spec's ``motors.interpolate_targets``.
 
     python experiments/nao_standing_heat.py --out experiments/results/nao_standing_heat.json
 """
@@ -58,11 +69,13 @@ def stand_params(stored: np.ndarray, **changes: float) -> np.ndarray:
 
 
 def hold(spec, controls: np.ndarray, mm: mo.MotorModel, *, kp_scale: float = 1.0,
-         timestep: float | None = None) -> dict:
+         timestep: float | None = None, interpolate: bool = False) -> dict:
     """Step ``controls`` ``(T, nu)`` (one per control step) with the limits in the physics and
     average the second half. ``kp_scale`` scales the servo gain (a softer position loop),
     ``timestep`` replaces the model's physics step (the control step stays
-    ``spec.control_dt``)."""
+    ``spec.control_dt``), ``interpolate``: the targets move linearly to the next control
+    step's over its physics steps (:func:`eaco_jax.gait.motors.physics_targets`) instead of
+    being held."""
     base = native_model(spec, 0.0, "fast")
     model = copy.copy(torque_model(spec, 0.0, "fast"))
     if timestep is not None:
@@ -87,7 +100,10 @@ def hold(spec, controls: np.ndarray, mm: mo.MotorModel, *, kp_scale: float = 1.0
     y = {s: 0.0 for s in feet}
     f6 = np.zeros(6)
     for s in range(steps):
-        u = controls[s // k]
+        i, j = divmod(s, k)
+        u = controls[i]
+        if interpolate:
+            u = u + (j / k) * (controls[min(i + 1, len(controls) - 1)] - u)
         q, qd = data.qpos[qadr].copy(), data.qvel[dofs].copy()
         tau = ql.motor_torque(q, qd, u, mp, mm, np)
         data.ctrl[:] = tau
@@ -130,7 +146,8 @@ def hold(spec, controls: np.ndarray, mm: mo.MotorModel, *, kp_scale: float = 1.0
                          "torque_sign_flips_per_s": float(flips[j]),
                          "winding_10min_c": float(t10[j])}
     hot = max(joints, key=lambda n: joints[n]["winding_10min_c"])
-    return {"fell": False, "timestep": dt, "kp_scale": kp_scale, "joints": joints,
+    return {"fell": False, "timestep": dt, "kp_scale": kp_scale, "interpolate": interpolate,
+            "joints": joints,
             "hottest": hot, "hottest_10min_c": joints[hot]["winding_10min_c"],
             "loss_total_w": float(loss.sum()), "torso_x_m": float(data.qpos[0]),
             "feet": {s: {"force_n": (force[s] / keep).tolist(), "roll_deg": roll[s] / keep,
@@ -192,9 +209,16 @@ def main() -> None:
                              hold(spec, gait(stored), mm, timestep=dt)))
     rows.append(case_row("walk-stored-gait-kp/2", {}, hold(spec, gait(stored), mm,
                                                          kp_scale=0.5)))
+    for dt in (0.004, 0.001):
+        rows.append(case_row("walk-stored-gait-interpolated", {"timestep": dt},
+                             hold(spec, gait(stored), mm, timestep=dt, interpolate=True)))
+    for h in HEIGHTS:
+        rows.append(case_row("flat-interpolated", {"hip_height": h, **flat}, hold(
+            spec, gait(stand_params(stored, hip_height=h, **flat)), mm, interpolate=True)))
     get = lambda kind, **ch: next(r for r in rows if r["kind"] == kind and all(  # noqa: E731
         r["set"].get(k) == v for k, v in ch.items()))
     walk = get("walk-stored-gait", timestep=0.004)
+    walk_i = get("walk-stored-gait-interpolated", timestep=0.004)
     summary = {
         "feasibility_stand_hottest_10min_c": {
             f"{h:.2f}": get("feasibility-stand", hip_height=h)["hottest_10min_c"]
@@ -213,6 +237,18 @@ def main() -> None:
                           for k in ("feasibility-stand", "flat")},
         "walk_fast_loss_share": {j: walk["joints"][f"L{j}"]["fast_loss_share"]
                                  for j in LEGS[1:]},
+        "walk_loss_total_w": {"held": walk["loss_total_w"],
+                              "interpolated": walk_i["loss_total_w"]},
+        "walk_hottest_10min_c": {"held": walk["hottest_10min_c"],
+                                 "interpolated": walk_i["hottest_10min_c"]},
+        "walk_interpolated_fast_loss_share": {
+            j: walk_i["joints"][f"L{j}"]["fast_loss_share"] for j in LEGS[1:]},
+        "walk_interpolated_loss_w": {j: walk_i["joints"][f"L{j}"]["loss_w"] for j in LEGS},
+        "walk_held_loss_w": {j: walk["joints"][f"L{j}"]["loss_w"] for j in LEGS},
+        "walk_distance_m": {"held": walk["torso_x_m"], "interpolated": walk_i["torso_x_m"]},
+        "flat_interpolated_hottest_10min_c": {
+            f"{h:.2f}": get("flat-interpolated", hip_height=h)["hottest_10min_c"]
+            for h in HEIGHTS},
         "walk_knee_loss_w_by_timestep": {
             str(dt): get("walk-stored-gait", timestep=dt)["joints"]["LKneePitch"]["loss_w"]
             for dt in (0.004, 0.002, 0.001)},

@@ -129,6 +129,26 @@ def physics_limits(spec) -> bool:
 
 
 @functools.lru_cache(maxsize=8)
+def interpolates_targets(spec) -> bool:
+    """Whether the position targets reach the motors interpolated linearly between control
+    steps (:func:`physics_targets`) instead of held: the spec's ``motors.interpolate_targets``
+    (default off). NAO's DCM interpolates timed joint commands linearly at every DCM cycle
+    (nao.json ``sources.targets``); held, a target that moves jumps once per control step and
+    the stiff position loop answers each jump with a torque pulse."""
+    return bool(spec_json(spec).get("motors", {}).get("interpolate_targets", False))
+
+
+def physics_targets(u, u_next, k: int, interpolate: bool, xp=jnp):
+    """Targets ``(..., k, nu)`` of the ``k`` physics steps of a control step whose target is
+    ``u`` ``(..., nu)`` and whose successor's is ``u_next``: ``u + (j / k) (u_next - u)``,
+    ``j = 0 .. k-1``, when ``interpolate``, else ``u`` held."""
+    if not interpolate:
+        return xp.broadcast_to(u[..., None, :], u.shape[:-1] + (k,) + u.shape[-1:])
+    w = xp.asarray(np.arange(k) / k, u.dtype)[:, None]
+    return u[..., None, :] + w * (u_next - u)[..., None, :]
+
+
+@functools.lru_cache(maxsize=8)
 def friction_share(spec) -> float:
     """The share of an actuated joint's damping that is friction, not back-EMF:
     ``f / (1 + f)`` with the spec's ``motors.frictionloss_fraction`` ``f`` (the damping is
@@ -305,6 +325,7 @@ def minutes_to_limit(power, ripple, mm: MotorModel, xp=jnp, iters: int = 60):
 
 
 __all__ = ["BLOCKS", "KEYS", "MotorModel", "advance", "copper_loss", "current",
-           "electrical_constants", "electrical_power", "friction_share", "limited_torque",
-           "minutes_to_limit", "modes", "motor_model", "physics_limits", "ripple_bound",
+           "electrical_constants", "electrical_power", "friction_share", "interpolates_targets",
+           "limited_torque", "minutes_to_limit", "modes", "motor_model", "physics_limits",
+           "physics_targets", "ripple_bound",
            "steady_state", "step_response", "temperatures", "torque_cap"]

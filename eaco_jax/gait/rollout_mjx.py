@@ -2,9 +2,11 @@
 
 Each control step sets the rollouts' position targets (the walk engine's output at
 ``t = k * control_dt``, precomputed for every ant) and runs ``substeps`` ``mjx.step`` calls holding
-them. Only the torso trace ``(B, T + 1, 7)`` (root position, up axis and heading after each
-control step, row 0 = start) is kept, the same as the native backend returns; ``record=True``
-also returns ``qpos`` after each control step (for plots and videos).
+them (or, where the spec says so, :func:`eaco_jax.gait.motors.interpolates_targets`, moving them
+linearly to the next control step's). Only the torso trace ``(B, T + 1, 7)`` (root position,
+up axis and heading after each control step, row 0 = start) is kept, the same as the native
+backend returns; ``record=True`` also returns ``qpos`` after each control step (for plots and
+videos).
 
 With ``worlds`` (:mod:`eaco_jax.gait.worlds`) every ant runs in each of the R worlds, rollout
 ``b = a * R + r``, all in one ``vmap``: the model is batched over the varied fields
@@ -183,6 +185,7 @@ def mjx_rollout(
     impl: str = "jax",
     limits: bool | None = None,
     trace_every: int = 0,
+    interpolate: bool | None = None,
 ) -> dict[str, jax.Array]:
     """Roll out the ants' targets ``controls`` ``(A, T, nu)`` on MJX (in R worlds if given).
 
@@ -190,7 +193,9 @@ def mjx_rollout(
     quality accumulators ``acc`` with ``quality``; ``B = A * R`` (R = 1 without worlds).
     ``limits`` (default: the spec's): the motor limits in the physics. ``trace_every`` (with
     ``quality``): sample the motors' temperatures every that many control steps, inside the
-    scan (no per-step history is kept).
+    scan (no per-step history is kept). ``interpolate`` (default: the spec's,
+    :func:`~eaco_jax.gait.motors.interpolates_targets`): the targets move linearly from one
+    control step's to the next over its physics steps instead of being held.
     ``impl="warp"`` runs MuJoCo Warp (CUDA) with contact and constraint buffers sized from the
     model and the batch (:func:`contact_capacity`); an overflow is reported on stderr.
     Traceable: call it inside jit / scan.
@@ -202,6 +207,7 @@ def mjx_rollout(
     limits = mo.physics_limits(spec) if limits is None else bool(limits)
     if limits and mo.motor_model(spec) is None:
         raise ValueError(f"robot {spec.name}: no electrical motor data, no limits to apply")
+    interpolate = mo.interpolates_targets(spec) if interpolate is None else bool(interpolate)
     need_motor = quality or limits
     mm = mjx_model(spec, float(slope_deg), accuracy, impl, limits)
     a, n_steps, nu = controls.shape
@@ -284,27 +290,31 @@ def mjx_rollout(
     def control_step(carry, t):
         d, acc, alive, peak = carry
         u = targets(t)
+        # (nb, k, nu): this control step's physics steps' targets, held or interpolated
+        us = mo.physics_targets(u, targets(jnp.minimum(t + 1, n_steps - 1)) if interpolate
+                                else u, k, interpolate)
         d = d.replace(ctrl=u)
         if worlds is not None:
             qfrc = jnp.zeros((nb, model.nv), jnp.float32)
             qfrc = qfrc.at[:, :3].set(jnp.take(push_at(t, worlds), world_of, axis=0))
             d = d.replace(qfrc_applied=qfrc)
         if quality:
-            def sub(dd, _):
+            def sub(dd, j):
+                dd = dd.replace(ctrl=us[:, j])
                 q, v0 = dd.qpos[:, qadr_all], dd.qvel[:, dofs]
                 dd, tau = physics(dd)
                 # with the limits: the speeds each torque was computed at (the step's start)
                 return dd, (q, v0 if limits else dd.qvel[:, dofs], tau)
 
-            d, (q, qdot, tau) = jax.lax.scan(sub, d, None, length=k)
+            d, (q, qdot, tau) = jax.lax.scan(sub, d, jnp.arange(k))
             keep = jnp.broadcast_to(alive[:, None], (nb, k))
             acc = ql.add_physics(acc, jnp.swapaxes(q, 0, 1), jnp.swapaxes(qdot, 0, 1),
-                                 u[:, None], keep, mp, dt, el=el, step0=t,
+                                 us, keep, mp, dt, el=el, step0=t,
                                  tau=None if tau is None else jnp.swapaxes(tau, 0, 1))
             soles = d.sensordata[:, sole_adr].reshape(nb, 1, -1, 3)
             acc = ql.add_control(acc, soles, alive[:, None], normal, radius)
         else:
-            d = jax.lax.fori_loop(0, k, lambda _, dd: physics(dd)[0], d)
+            d = jax.lax.fori_loop(0, k, lambda j, dd: physics(dd.replace(ctrl=us[:, j]))[0], d)
         row = root_trace(d.qpos)
         alive = alive & ~is_down(row[:, :3], row[:, 3:6], spec.fall_height, spec.fall_tilt_deg,
                                  slope_deg)

@@ -1,7 +1,9 @@
 """Batched gait rollouts on MuJoCo's C engine, across all CPU threads (``mujoco.rollout``).
 
 The controls are computed in JAX by the walk engine at the control rate, ``(B, T, nu)``, and
-held for ``substeps`` physics steps each. ``mujoco.rollout`` runs the rollouts in parallel on a
+held for ``substeps`` physics steps each (or, where the spec says so,
+:func:`eaco_jax.gait.motors.interpolates_targets`, moved linearly to the next one over them).
+``mujoco.rollout`` runs the rollouts in parallel on a
 persistent thread pool (one ``MjData`` per thread, one ``MjModel`` per rollout when the worlds
 differ); to keep memory small the horizon is cut into time chunks (the state at the end of a chunk
 starts the next; MuJoCo's solver warm start restarts at a chunk boundary, a chunk is at least
@@ -192,8 +194,9 @@ def native_rollout(
     nthread: int | None = None,
     limits: bool | None = None,
     trace_every: int = 0,
+    interpolate: bool | None = None,
 ) -> dict[str, np.ndarray]:
-    """Roll out ``controls`` ``(B, T, nu)`` (each held for one control step) on the host.
+    """Roll out ``controls`` ``(B, T, nu)`` (one per control step) on the host.
 
     ``models`` one per rollout (default: the nominal model), ``qpos_init`` ``(B, nq)`` initial
     configurations at rest (default: the keyframe), ``push`` ``(B, T, 3)`` forces on the torso
@@ -213,6 +216,7 @@ def native_rollout(
     limits = mo.physics_limits(spec) if limits is None else bool(limits)
     if limits and mo.motor_model(spec) is None:
         raise ValueError(f"robot {spec.name}: no electrical motor data, no limits to apply")
+    interpolate = mo.interpolates_targets(spec) if interpolate is None else bool(interpolate)
     model_arg = base if models is None else list(models)
     if limits:
         motor = motor or nominal_motor(spec, base)
@@ -254,7 +258,7 @@ def native_rollout(
     pool = _pool(nthread)
     for start in range(0, steps, per_ctrl):
         stop = min(steps, start + per_ctrl)
-        ctrl = np.repeat(controls[:, start:stop], k, axis=1)
+        ctrl = physics_controls(controls, start, stop, k, interpolate)
         spec_bits = mujoco.mjtState.mjSTATE_CTRL
         if push is not None:
             qfrc = np.zeros(ctrl.shape[:2] + (base.nv,))
@@ -298,6 +302,18 @@ def native_rollout(
         result["acc"] = {k_: np.asarray(v, np.float32) if v.dtype.kind == "f" else v
                          for k_, v in acc.items()}
     return result
+
+
+def physics_controls(controls: np.ndarray, start: int, stop: int, k: int,
+                     interpolate: bool) -> np.ndarray:
+    """Targets ``(B, (stop - start) k, nu)`` of the physics steps of control steps
+    ``start .. stop - 1`` of ``controls`` ``(B, T, nu)``: held, or moving linearly toward the
+    next control step's (:func:`~eaco_jax.gait.motors.physics_targets`; the last is held)."""
+    if not interpolate:
+        return np.repeat(controls[:, start:stop], k, axis=1)
+    nxt = controls[:, np.minimum(np.arange(start + 1, stop + 1), controls.shape[1] - 1)]
+    ctrl = mo.physics_targets(controls[:, start:stop], nxt, k, True, np)
+    return ctrl.reshape(ctrl.shape[0], -1, ctrl.shape[-1])
 
 
 def _torque_copies(models: list[mujoco.MjModel], spec: RobotSpec) -> list[mujoco.MjModel]:
