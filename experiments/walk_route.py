@@ -43,6 +43,18 @@ def _relative(path: Path) -> str:
         return str(path)
 
 
+def _done(folder: Path, settings) -> dict | None:
+    """The walk record already in ``folder`` if it was run with ``settings``, else None."""
+    import dataclasses
+    import json
+
+    path = folder / "walk.json"
+    if not path.is_file():
+        return None
+    rec = json.loads(path.read_text())
+    return rec if rec.get("settings") == dataclasses.asdict(settings) else None
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenes", default=None, help="comma-separated scenes (default: "
@@ -54,6 +66,9 @@ def main() -> None:
                     help="MJX implementation (--backend mjx)")
     ap.add_argument("--out", type=Path, default=None, help="default: experiments/results/"
                     "walk, or walk_mjx with --backend mjx")
+    ap.add_argument("--skip-done", action="store_true", help="reuse a scene's walk.json "
+                    "under --out where it has the same worlds, backend and settings (a run "
+                    "cut short continues where it stopped; the summary covers all scenes)")
     args = ap.parse_args()
     if args.out is None:
         args.out = HERE / "results" / ("walk" if args.backend == "native" else "walk_mjx")
@@ -71,7 +86,9 @@ def main() -> None:
                                        "out": str(folder), "backend": args.backend,
                                        "impl": args.impl})
         try:
-            rec = kind.run(settings)
+            rec = _done(folder, settings) if args.skip_done else None
+            if rec is None:
+                rec = kind.run(settings)
         except ProblemError as err:
             print(f"{name}: skipped ({err})", flush=True)
             rows.append({"scene": name, "skipped": str(err)})

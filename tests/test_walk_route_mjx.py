@@ -97,6 +97,35 @@ def test_jax_controller_decides_as_the_native_one():
         np.testing.assert_allclose(np.asarray(got_target), want_target, atol=1e-5)
 
 
+# --------------------------------------------------------------------------- worlds
+def test_worlds_are_the_native_walkers_worlds(nao):
+    """World i of n: the native walker's model fields (obstacle friction included), initial
+    pose, latency, push and every control step's target noise."""
+    scene = Scene(name="g", bounds=(0.0, -1.0, 3.0, 2.0), start=(0.3, 0.0), goal=(2.8, 1.8),
+                  obstacles=(Obstacle(BOX, 0.5), Obstacle(PENTAGON, 0.3)))
+    model = sw.scene_model(scene, nao, start_heading=0.4)
+    n, steps, push = 3, 40, 30
+    native, _ = wr.sample_walk_worlds(model, nao, n, steps, push, seed=5)
+    batch, _ = wm.world_batch(model, nao, n, push, (0.3, 0.0), 0.4, seed=5, index=[2, 0])
+    for row, i in enumerate((2, 0)):
+        w = native[i]
+        for f, v in batch.fields.items():
+            np.testing.assert_allclose(v[row], getattr(w.model, f), rtol=1e-6, err_msg=f)
+        q = np.array(w.qpos, copy=True)
+        q[:2] = (0.3, 0.0)
+        q[3:7] = [math.cos(0.2), 0.0, 0.0, math.sin(0.2)]
+        np.testing.assert_allclose(batch.qpos[row], q, atol=1e-6)
+        assert batch.latency[row] == w.latency
+        assert (batch.push_start[row], batch.push_stop[row]) == (w.push_start, w.push_stop)
+        np.testing.assert_allclose(batch.push_force[row], w.push_force, rtol=1e-6)
+        for t in (0, 17, steps - 1):
+            noise = jax.random.normal(jax.random.fold_in(batch.noise_key, t), (batch.n_draw,
+                                                                               nao.nu))
+            np.testing.assert_allclose(
+                batch.noise_std[row] * np.asarray(noise)[batch.noise_rows[row]],
+                w.noise[t], atol=1e-7)
+
+
 # --------------------------------------------------------------------------- walks
 @pytest.fixture(scope="module")
 def tiny(nao):
@@ -158,6 +187,7 @@ def test_batched_walk_gives_each_world_its_unbatched_result(nao, tiny):
     assert min(np.linalg.norm(ends[i] - ends[j]) for i, j in ((0, 1), (0, 2), (1, 2))) > 1e-3
 
 
+@pytest.mark.slow
 def test_walk_into_an_obstacle_is_a_contact(nao):
     """A route through the box: the walk touches it (the nominal world, MJX-JAX on CPU)."""
     gaits, ctrl = wr.load_walk_gaits("nao"), wr.Controller()
@@ -170,3 +200,30 @@ def test_walk_into_an_obstacle_is_a_contact(nao):
     assert rec["closest_approach_m"] <= 0.0
     x_touch = np.interp(rec["contact_time_s"], *np.asarray(rec["trajectory"])[:, :2].T)
     assert 1.0 < x_touch < 1.5  # the torso is just short of the box's face at x = 1.5
+
+
+@pytest.mark.slow
+def test_eaco_walk_on_mjx_writes_the_native_record(tmp_path):
+    """``eaco walk --backend mjx``: the nominal walk and a world in one call, the record with
+    the native backend's fields, naming the backend."""
+    import json
+
+    from eaco_jax.runs import get
+
+    path = tmp_path / "tiny.json"
+    path.write_text(json.dumps({"name": "tiny", "bounds": [0.0, -2.0, 4.0, 2.0],
+                                "start": [0.3, 0.0], "goal": [3.3, 0.0],
+                                "obstacles": [{"polygon": [list(p) for p in BOX],
+                                               "height": 0.5}]}))
+    kind = get("walk")
+    common = {"scene": str(path), "planner": "optimal", "max_time": 2.0, "worlds": 1}
+    mjx = kind.run(kind.make_settings({**common, "backend": "mjx",
+                                       "out": str(tmp_path / "mjx")}))
+    native = kind.run(kind.make_settings(common))
+    assert mjx["backend"] == "mjx-jax" and native["backend"] == "native"
+    assert set(mjx) == set(native) and set(mjx["worlds"]) == set(native["worlds"])
+    assert set(mjx["nominal"]) == set(native["nominal"])
+    assert set(mjx["worlds"]["walks"][0]) == set(native["worlds"]["walks"][0])
+    a, b = (np.asarray(r["nominal"]["trajectory"]) for r in (native, mjx))
+    assert a.shape == b.shape and np.max(np.abs(a[:, 1:3] - b[:, 1:3])) < PATH_TOL
+    assert (tmp_path / "mjx" / "walk.json").is_file() and (tmp_path / "mjx" / "walk.png").is_file()
