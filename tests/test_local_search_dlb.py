@@ -14,7 +14,7 @@ import jax
 import numpy as np
 import pytest
 
-from eaco_jax.ops.local_search import best_k, dlb_local_search
+from eaco_jax.ops.local_search import best_k, changed_cities, dlb_local_search
 from eaco_jax.problems import TSP, load_tsplib
 
 
@@ -41,14 +41,16 @@ def _or_move(tour, sa, length, t, rev):
         tour[(sa + q) % n] = c
 
 
-def reference(tour, order, d, cand, or_opt=False, full_check=False, max_moves=10**9):
-    """Plain-Python don't-look-bit local search (the specification of dlb_local_search)."""
+def reference(tour, order, d, cand, or_opt=False, full_check=False, max_moves=10**9,
+              start=None):
+    """Plain-Python don't-look-bit local search (the specification of dlb_local_search);
+    ``start``: the cities whose bits start clear (None: all)."""
     tour = [int(c) for c in tour]
     n, k = len(tour), cand.shape[1]
     pos = [0] * n
     for i, c in enumerate(tour):
         pos[c] = i
-    active = [True] * n
+    active = [True] * n if start is None else [bool(a) for a in start]
     rank = {int(c): i for i, c in enumerate(order)}
     ptr, moves, dirty = 0, 0, False
     while any(active) and moves < max_moves:
@@ -162,6 +164,54 @@ def test_matches_numpy_reference_move_for_move(eil51, or_opt, full_check, block,
         want, want_moves = reference(t, o, d, cand, or_opt, full_check)
         np.testing.assert_array_equal(got, want)
         assert mv == want_moves
+
+
+@pytest.mark.parametrize("impl,block", [("xla", 1), ("xla", 4), ("native", 1)])
+def test_focused_start_matches_reference(eil51, impl, block):
+    """Bits clear only at the changed edges' cities (Focused ACO): the same moves as the
+    reference started from the same bits, on tours a few edges away from a local optimum."""
+    d, cand = np.asarray(eil51.dist, np.float64), np.asarray(eil51.neighbors)
+    opt = np.asarray(dlb_local_search(None, _tours(51, 1, 5), eil51.dist, eil51.neighbors,
+                                      or_opt=True, full_check=True))[0]
+    rng = np.random.default_rng(6)
+    tours = []
+    for _ in range(4):  # two random segment reversals of the local optimum
+        t = opt.copy()
+        for _ in range(2):
+            a, b = sorted(rng.choice(51, 2, replace=False))
+            t[a:b + 1] = t[a:b + 1][::-1]
+        tours.append(t)
+    tours = np.stack(tours).astype(np.int32)
+    orders = _tours(51, 4, 7)
+    active = np.asarray(changed_cities(tours, opt))
+    assert 0 < active.sum(axis=1).max() <= 8  # two reversals change at most four edges
+    out, moves = dlb_local_search(None, tours, eil51.dist, eil51.neighbors, or_opt=True,
+                                  return_moves=True, order=orders, block=block, impl=impl,
+                                  active=active)
+    for t, o, a, got, mv in zip(tours, orders, active, np.asarray(out), np.asarray(moves),
+                                strict=True):
+        want, want_moves = reference(t, o, d, cand, True, False, start=a)
+        np.testing.assert_array_equal(got, want)
+        assert mv == want_moves
+    # no clear bit: nothing is searched; every bit clear: the unfocused search
+    none = dlb_local_search(None, tours, eil51.dist, eil51.neighbors, or_opt=True,
+                            order=orders, impl=impl, active=np.zeros_like(active))
+    np.testing.assert_array_equal(none, tours)
+    full = dlb_local_search(None, tours, eil51.dist, eil51.neighbors, or_opt=True,
+                            order=orders, impl=impl, active=np.ones_like(active))
+    np.testing.assert_array_equal(full, dlb_local_search(None, tours, eil51.dist,
+                                                         eil51.neighbors, or_opt=True,
+                                                         order=orders, impl=impl))
+
+
+def test_changed_cities_by_hand():
+    ref = np.arange(8, dtype=np.int32)
+    # reversing positions 2..4 replaces edges (1,2), (4,5) by (1,4), (2,5)
+    t = np.array([[0, 1, 4, 3, 2, 5, 6, 7], [7, 6, 5, 4, 3, 2, 1, 0], [3, 4, 5, 6, 7, 0, 1, 2]],
+                 np.int32)
+    got = np.asarray(changed_cities(t, ref))
+    assert sorted(np.flatnonzero(got[0])) == [1, 2, 4, 5]
+    assert not got[1].any() and not got[2].any()  # the same cycle, reversed or rotated
 
 
 @pytest.mark.parametrize("or_opt", [False, True])

@@ -438,6 +438,7 @@ def _dlb_one(
     or_opt: bool,
     full_check: bool,
     block: int = 1,
+    active0: Array | None = None,
 ) -> tuple[Array, Array, Array]:
     """Don't-look-bit local search of one tour: (tour, moves, loop iterations).
 
@@ -455,9 +456,11 @@ def _dlb_one(
       s) - d(p, s)`` (the gain criterion, Or-opt's counterpart of the 2-opt radius: it keeps
       the scan to a few near candidates); the move of largest positive gain is applied.
     * A move clears the don't-look bits of the endpoints of every removed edge; no move sets
-      ``c1``'s bit. The search ends when every bit is set (with ``full_check``: and a full pass
-      over all cities found nothing, which makes the result a local optimum of the candidate
-      neighbourhood), or after ``max_moves`` moves.
+      ``c1``'s bit. The bits start clear for every city, or where ``active0`` is True only
+      (Focused ACO: the cities of the edges an ant changed). The search ends when every bit
+      is set (with ``full_check``: and a full pass over all cities found nothing, which makes
+      the result a local optimum of the candidate neighbourhood), or after ``max_moves``
+      moves.
 
     Each loop iteration evaluates the next ``block`` cities with clear bits at once and applies
     the first move found among them: the very search of one city per iteration (the same
@@ -578,7 +581,8 @@ def _dlb_one(
         return jnp.any(active) & (moves < max_moves)
 
     zero = jnp.int32(0)
-    init = (tour, pos0, jnp.ones(n, bool), zero, zero, zero, jnp.bool_(False))
+    start = jnp.ones(n, bool) if active0 is None else jnp.asarray(active0, bool)
+    init = (tour, pos0, start, zero, zero, zero, jnp.bool_(False))
     tour, _, _, _, moves, iters, _ = jax.lax.while_loop(cond, body, init)
     return tour, moves, iters
 
@@ -612,6 +616,7 @@ def dlb_local_search(
     order: Array | None = None,
     block: int = 1,
     impl: str = "auto",
+    active: Array | None = None,
 ) -> Array | tuple[Array, Array]:
     """ACOTSP-style 2-opt (and optionally Or-opt) of every tour ``(m, n)``, see :func:`_dlb_one`.
 
@@ -630,6 +635,10 @@ def dlb_local_search(
       impl: "auto", "xla" or "native" (:data:`DLB_IMPLS`; every one returns the same tours).
         Native is ACOTSP's speed on a CPU: one sequential search per tour is what a CPU does
         well and what XLA's CPU loop does slowly (``eaco_jax/ops/local_search_native.py``).
+      active: ``(m, n)`` bool, the cities whose don't-look bits start clear (None: all).
+        Focused ACO searches from the endpoints of the edges an ant changed only
+        (:func:`changed_cities`): a tour that differs from a local optimum in a few edges
+        is searched in a few steps instead of a pass over all ``n`` cities.
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
@@ -647,19 +656,24 @@ def dlb_local_search(
             keys = jax.random.split(key, m)
             order = jax.vmap(lambda kk: jax.random.permutation(kk, n))(keys).astype(jnp.int32)
     order = jnp.asarray(order, jnp.int32)
+    if active is None:
+        active = jnp.ones((m, n), bool)
+    active = jnp.asarray(active, bool)
+    if active.shape != (m, n):
+        raise ValueError(f"active must have the tours' shape {(m, n)}, got {active.shape}")
     native_mode = _native_mode(dist)
     if resolve_dlb_impl(impl) == "native" and native_mode is not None:
         from eaco_jax.ops.local_search_native import dlb_native
 
         table = dist.coords if native_mode else dist
         out, moves = dlb_native(tours, order, table, cand, cand_d, mm, or_opt, full_check,
-                                native_mode)
+                                native_mode, active)
         return (out, moves) if return_moves else out
 
-    def one(t, o):
-        return _dlb_one(t, o, dist, cand, cand_d, mm, or_opt, full_check, block)
+    def one(t, o, a):
+        return _dlb_one(t, o, dist, cand, cand_d, mm, or_opt, full_check, block, a)
 
-    out, moves, _ = jax.vmap(one)(tours, order)
+    out, moves, _ = jax.vmap(one)(tours, order, active)
     return (out, moves) if return_moves else out
 
 
@@ -673,12 +687,30 @@ def _native_mode(dist: Any) -> int | None:
     return None
 
 
-def best_k(tours: Array, lengths: Array, k: int | None, improve) -> Array:
-    """Apply ``improve(tours) -> tours`` to the ``k`` shortest tours only (all when None or
-    ``k >= m``); the others are returned unchanged. Static shapes: ``k`` is a Python int."""
+def changed_cities(tours: Array, ref: Array) -> Array:
+    """``(m, n)`` bool: the cities of ``tours`` ``(m, n)`` on an edge that the tour ``ref``
+    ``(n,)`` does not have (both ends of every such edge), in either direction."""
+    tours = jnp.asarray(tours, jnp.int32)
+    ref = jnp.asarray(ref, jnp.int32)
+    n = ref.shape[0]
+    succ = jnp.zeros(n, jnp.int32).at[ref].set(jnp.roll(ref, -1))
+    pred = jnp.zeros(n, jnp.int32).at[ref].set(jnp.roll(ref, 1))
+    nxt = jnp.roll(tours, -1, axis=1)
+    new = (succ[tours] != nxt) & (pred[tours] != nxt)  # edge (tours[:, i], tours[:, i+1])
+    rows = jnp.arange(tours.shape[0])[:, None]
+    mask = jnp.zeros(tours.shape, bool)
+    mask = mask.at[rows, tours].max(new)
+    return mask.at[rows, nxt].max(new)
+
+
+def best_k(tours: Array, lengths: Array, k: int | None, improve, *extra: Array) -> Array:
+    """Apply ``improve(tours, *extra) -> tours`` to the ``k`` shortest tours only (all when
+    None or ``k >= m``); the others are returned unchanged. ``extra``: per-tour arrays
+    ``(m, ...)`` taken along with the tours. Static shapes: ``k`` is a Python int."""
     tours = jnp.asarray(tours, jnp.int32)
     m = tours.shape[0]
     if k is None or k >= m:
-        return improve(tours)
+        return improve(tours, *extra)
     _, idx = jax.lax.top_k(-lengths, k)
-    return tours.at[idx].set(improve(tours[idx]), unique_indices=True)
+    return tours.at[idx].set(improve(tours[idx], *(e[idx] for e in extra)),
+                             unique_indices=True)

@@ -100,17 +100,19 @@ def _d(dist, mode, i, j):  # pragma: no cover - numba
 @numba.njit(cache=True, nogil=True)
 def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, lens, back,
              pos, rank, active, seg, ends, pc2, sc2, pr2, ga, gb, grem,
-             mode=0):  # pragma: no cover
-    """One tour, in place: ``local_search._dlb_one`` with ``block=1``. Returns the moves."""
+             mode, active0):  # pragma: no cover
+    """One tour, in place: ``local_search._dlb_one`` with ``block=1``. Returns the moves.
+    ``active0``: the cities whose bits start clear."""
     n = tour.shape[0]
     k = cand.shape[1]
     n_seg = lens.shape[0]
     neg_inf = np.float32(-np.inf)
+    n_active = 0
     for i in range(n):
         pos[tour[i]] = i
         rank[order[i]] = i
-        active[i] = True
-    n_active = n
+        active[i] = active0[i]
+        n_active += active[i]
     ptr = 0
     moves = 0
     dirty = False
@@ -235,9 +237,13 @@ def _dlb_one(tour, order, dist, cand, cand_d, max_moves, or_opt, full_check, len
 
 
 @numba.njit(cache=True, nogil=True)
-def dlb_batch(tours, orders, dist, cand, cand_d, max_moves, or_opt, full_check, mode=0):
-    """Every tour of ``tours`` ``(m, n)`` (copied): (improved tours, moves per tour)."""
+def dlb_batch(tours, orders, dist, cand, cand_d, max_moves, or_opt, full_check, mode=0,
+              actives=None):
+    """Every tour of ``tours`` ``(m, n)`` (copied): (improved tours, moves per tour);
+    ``actives`` ``(m, n)``: each tour's cities whose bits start clear (None: all)."""
     m, n = tours.shape
+    if actives is None:
+        actives = np.ones((m, n), np.bool_)
     out = tours.copy()
     moves = np.zeros(m, np.int32)
     pos = np.empty(n, np.int32)
@@ -254,7 +260,7 @@ def dlb_batch(tours, orders, dist, cand, cand_d, max_moves, or_opt, full_check, 
     for i in range(m):
         moves[i] = _dlb_one(out[i], orders[i], dist, cand, cand_d, max_moves, or_opt,
                             full_check, lens, back, pos, rank, active, seg, ends, pc2, sc2,
-                            pr2, ga, gb, grem, mode)
+                            pr2, ga, gb, grem, mode, actives[i])
     return out, moves
 
 
@@ -265,21 +271,22 @@ def _readonly(x) -> np.ndarray:
     return x
 
 
-def _host(ctx, out, tours, orders, dist, cand, cand_d, *, max_moves: int, or_opt: bool,
-          full_check: bool, mode: int = 0) -> None:
+def _host(ctx, out, tours, orders, dist, cand, cand_d, actives, *, max_moves: int,
+          or_opt: bool, full_check: bool, mode: int = 0) -> None:
     """The buffer callback: reads XLA's buffers in place (no device transfer, which on a
     one-thread CPU client would wait for the very computation that waits for this call) and
     writes the results into ``out``. Any leading batch dims (``vmap`` adds them, size 1
     where unbatched) are looped over."""
     del ctx
-    args = [_readonly(x) for x in (tours, orders, dist, cand, cand_d)]
+    args = [_readonly(x) for x in (tours, orders, dist, cand, cand_d, actives)]
     out_tours, out_moves = np.asarray(out[0]), np.asarray(out[1])
     batch = np.broadcast_shapes(*(x.shape[:-2] for x in args))
     for idx in np.ndindex(*batch):
         def at(x, idx=idx):  # this batch element of x (index 0 along its size-1 dims)
             return x[tuple(i if s > 1 else 0 for i, s in zip(idx, x.shape, strict=False))]
-        out_tours[idx], out_moves[idx] = dlb_batch(*(at(x) for x in args), max_moves, or_opt,
-                                                   full_check, mode)
+        *rest, act = (at(x) for x in args)
+        out_tours[idx], out_moves[idx] = dlb_batch(*rest, max_moves, or_opt, full_check, mode,
+                                                   act)
 
 
 @lru_cache(maxsize=2)
@@ -295,19 +302,22 @@ def warm_up(coords: bool = False) -> None:
     args = [_readonly(x) for x in (tours, np.arange(n, dtype=np.int32)[None], dist, cand, cand_d)]
     if coords:
         args[2] = _readonly(np.stack([np.arange(n), np.zeros(n)], 1).astype(np.int32))
-    dlb_batch(*args, 4 * n, True, True, 1 if coords else 0)
+    dlb_batch(*args, 4 * n, True, True, 1 if coords else 0, np.ones((1, n), np.bool_))
 
 
 @partial(jax.jit, static_argnames=("max_moves", "or_opt", "full_check", "mode"))
 def dlb_native(tours: Array, orders: Array, dist: Array, cand: Array, cand_d: Array,
                max_moves: int, or_opt: bool, full_check: bool,
-               mode: int = 0) -> tuple[Array, Array]:
+               mode: int = 0, active: Array | None = None) -> tuple[Array, Array]:
     """``local_search._dlb_one`` over tours ``(m, n)`` as one host call: (tours, moves).
-    ``dist``: the (n, n) matrix (``mode`` 0), or (n, 2) int32 coordinates (:data:`MODES`)."""
+    ``dist``: the (n, n) matrix (``mode`` 0), or (n, 2) int32 coordinates (:data:`MODES`);
+    ``active``: ``(m, n)`` bool, the cities whose bits start clear (None: all)."""
     warm_up(mode != 0)
     shapes = (jax.ShapeDtypeStruct(tours.shape, jnp.int32),
               jax.ShapeDtypeStruct(tours.shape[:-1], jnp.int32))
     host = partial(_host, max_moves=int(max_moves), or_opt=bool(or_opt),
                    full_check=bool(full_check), mode=int(mode))
     call = buffer_callback(host, shapes, vmap_method="expand_dims")
-    return tuple(call(tours, orders, dist, cand, cand_d))
+    if active is None:
+        active = jnp.ones(tours.shape, bool)
+    return tuple(call(tours, orders, dist, cand, cand_d, jnp.asarray(active, bool)))

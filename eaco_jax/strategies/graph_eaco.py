@@ -481,7 +481,13 @@ class GraphEACO(Strategy):
                                               state.first_tour))
 
         tours = self._genetic(k_cx, k_mut, tours, state, dist)
-        tours = self._local_search(tours, problem, k_ls[0] if k_ls else None)
+        focus = None
+        if sparse and self.max_new_edges is not None:  # search from the changed edges only
+            from eaco_jax.ops.local_search import changed_cities
+
+            focus = changed_cities(tours, jnp.where(jnp.isfinite(state.best_cost),
+                                                    state.best_solution, state.first_tour))
+        tours = self._local_search(tours, problem, k_ls[0] if k_ls else None, focus)
         return tours, state.replace(chaos=x, pheromone_tour_length=l_pn)
 
     def _genetic(
@@ -524,11 +530,14 @@ class GraphEACO(Strategy):
             tours = jnp.where(do[:, None], mutants, tours)
         return tours
 
-    def _local_search(self, tours: Array, problem: Any, key: Array | None = None) -> Array:
+    def _local_search(self, tours: Array, problem: Any, key: Array | None = None,
+                      focus: Array | None = None) -> Array:
         """2-opt ("2opt": batched best improvement; "or-2opt": the same with Or-opt moves
         competing; "2opt-dlb": ACOTSP's first improvement with don't-look bits; "2opt+oropt":
         the latter plus Or-opt; these two run as native code on a CPU, with the same tours),
-        on every ant or on the ``ls_best_k`` shortest tours only."""
+        on every ant or on the ``ls_best_k`` shortest tours only. ``focus`` ``(m, n)``: the
+        don't-look-bit searches start from these cities only (Focused ACO's construction:
+        the ends of the edges an ant changed); the batched searches scan every city anyway."""
         if self.local_search == "none":
             return tours
         from eaco_jax.ops import local_search
@@ -543,13 +552,15 @@ class GraphEACO(Strategy):
                                             moves_per_step=self.ls_moves_per_step,
                                             or_opt=self.local_search == "or-2opt")
         else:
-            def improve(t):
+            def improve(t, a=None):
                 return local_search.dlb_local_search(
                     key, t, dist, neighbors, self.max_ls_moves,
-                    or_opt=self.local_search == "2opt+oropt")
+                    or_opt=self.local_search == "2opt+oropt", active=a)
+        extra = () if focus is None or self.local_search in ("2opt", "or-2opt") else (focus,)
         if self.ls_best_k is None or self.ls_best_k >= tours.shape[0]:
-            return improve(tours)
-        return local_search.best_k(tours, tour_lengths(dist, tours), self.ls_best_k, improve)
+            return improve(tours, *extra)
+        return local_search.best_k(tours, tour_lengths(dist, tours), self.ls_best_k, improve,
+                                   *extra)
 
     # ------------------------------------------------------------------ tell
     def _tell(
