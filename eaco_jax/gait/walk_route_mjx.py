@@ -506,7 +506,7 @@ def walk_batch(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: wr.WalkGai
         model = sw.scene_model(scene, spec, start_heading=heading0)
     n_steps = int(math.ceil(max_time / dt))
     fn = _compiled(_Static.of(scene, route, spec, gaits, ctrl, model, impl, limits,
-                              record_every, distmax, n_steps, len(batch.index), heading0,
+                              record_every, distmax, n_steps, len(batch.index),
                               int(np.max(batch.latency)) + 1))
     key = batch.noise_key if batch.noise_key is not None else jax.random.PRNGKey(0)
     inputs = (jnp.asarray(route, jnp.float32), jnp.float32(heading0), jnp.asarray(batch.qpos),
@@ -543,17 +543,16 @@ class _Static:
     distmax: float
     n_steps: int
     batch: int
-    heading0: float
     lat_max: int
 
     @staticmethod
     def of(scene, route, spec, gaits, ctrl, model, impl, limits, record_every, distmax,
-           n_steps, batch, heading0, lat_max) -> _Static:
+           n_steps, batch, lat_max) -> _Static:
         lib = np.stack([gaits.of(m) for m in wr.MODES]).astype(np.float32)
         key = (id(model), id(scene), len(route), spec.name, lib.tobytes(), ctrl, impl,
                bool(limits), record_every, distmax, n_steps, batch, lat_max)
         return _Static(key, scene, route, spec, lib, ctrl, model, impl, bool(limits),
-                       record_every, float(distmax), n_steps, batch, heading0, lat_max)
+                       record_every, float(distmax), n_steps, batch, lat_max)
 
     def __hash__(self) -> int:
         return hash(self.key)
