@@ -95,13 +95,17 @@ def test_ants_stay_in_their_worlds():
     robust = RobustConfig(R=3, seed=0, target_noise=0.0)
     steer = SteerConfig(segments=2, steer_gain=1e-9, min_step=1.0)
     prob = make_steered_problem("nao", backend="native", horizon=1.6, robust=robust,
-                                steer=steer)
+                                steer=steer, walker_physics=False)
     plain = make_gait_problem("nao", backend="native", horizon=1.6, robust=robust)
     worlds = prob.worlds(stream_key(0, "optimisation", 1))
     got = np.asarray(jax.jit(prob.steered_trace)(x, worlds))
     want = np.asarray(jax.jit(lambda x, w: plain._rollout(x, w, False)["trace"])(x, worlds))
     np.testing.assert_allclose(got, want, atol=1e-4)
     assert not np.allclose(got[0], got[1], atol=1e-3)  # worlds differ, so pairing is seen
+    # the walker's physics (servos, held targets) is another simulation than the spec's
+    walker = prob.replace(walker_physics=True)
+    other = np.asarray(jax.jit(walker.steered_trace)(x, worlds))
+    assert np.all(np.isfinite(other)) and np.max(np.abs(other - got)) > 1e-3
 
 
 def test_a_fall_costs_more_than_any_progress():

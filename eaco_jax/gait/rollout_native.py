@@ -437,14 +437,16 @@ def native_rollout_callback(
     worlds: Worlds | None = None,
     quality: bool = False,
     trace_every: int = 0,
+    limits: bool | None = None,
+    interpolate: bool | None = None,
 ):
     """:func:`native_rollout` as a ``jax.pure_callback`` (usable under jit, vmap and scan).
 
     ``controls`` ``(A, T, nu)``; with ``worlds`` (R of them) every ant runs in every world, rollout
     ``b = a * R + r``. Returns ``trace`` ``(B, T + 1, 7)`` and, with ``quality``, ``acc`` (dict of
     accumulators, leading axis B). The worlds' targets, pushes and initial poses are computed here
-    in JAX by the same functions the MJX backend uses. ``trace_every``: as
-    :func:`native_rollout`'s.
+    in JAX by the same functions the MJX backend uses. ``trace_every``, ``limits`` and
+    ``interpolate``: as :func:`native_rollout`'s (None: the spec's).
     """
     base = native_model(spec, float(slope_deg), accuracy)
     a, t, nu = controls.shape[-3:]
@@ -490,7 +492,8 @@ def native_rollout_callback(
             opts = dict(models=models, motor=motor, qpos_init=flat["qinit"].astype(np.float64),
                         push=flat["push"])
         out = native_rollout(flat["ctrl"], spec, slope_deg, accuracy, quality=quality,
-                             trace_every=trace_every, **opts)
+                             trace_every=trace_every, limits=limits, interpolate=interpolate,
+                             **opts)
         res = {"trace": out["trace"].reshape(extra + (nb, t + 1, TRACE_COLUMNS))}
         if quality:
             res["acc"] = {k: v.reshape(extra + (nb,) + v.shape[1:]) for k, v in out["acc"].items()}
