@@ -220,7 +220,7 @@ def test_eaco_walk_on_mjx_writes_the_native_record(tmp_path):
     common = {"scene": str(path), "planner": "optimal", "max_time": 2.0, "worlds": 1}
     mjx = kind.run(kind.make_settings({**common, "backend": "mjx",
                                        "out": str(tmp_path / "mjx")}))
-    native = kind.run(kind.make_settings(common))
+    native = kind.run(kind.make_settings({**common, "out": str(tmp_path / "native")}))
     assert mjx["backend"] == "mjx-jax" and native["backend"] == "native"
     assert set(mjx) == set(native) and set(mjx["worlds"]) == set(native["worlds"])
     assert set(mjx["nominal"]) == set(native["nominal"])
