@@ -126,6 +126,18 @@ def test_worlds_are_the_native_walkers_worlds(nao):
                 w.noise[t], atol=1e-7)
 
 
+def test_warp_without_a_gpu_is_refused_in_one_line(tmp_path):
+    from eaco_jax.errors import ConfigError
+    from eaco_jax.gait.mjx_import import warp_usable
+    from eaco_jax.runs import get
+
+    if warp_usable():
+        pytest.skip("MuJoCo Warp runs here")
+    kind = get("walk")
+    with pytest.raises(ConfigError, match="use --impl jax"):
+        kind.run(kind.make_settings({"scene": "default", "backend": "mjx", "impl": "warp"}))
+
+
 # --------------------------------------------------------------------------- walks
 @pytest.fixture(scope="module")
 def tiny(nao):

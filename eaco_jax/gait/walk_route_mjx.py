@@ -481,6 +481,17 @@ def _ramp_steps(dt: float) -> int:
     return k
 
 
+def check_impl(impl: str) -> None:
+    """One line for an MJX implementation that cannot run here."""
+    from eaco_jax.gait.mjx_import import warp_usable
+
+    if impl not in IMPLS:
+        raise ConfigError(f"impl must be one of {', '.join(IMPLS)}, got {impl!r}")
+    if impl == "warp" and not warp_usable():
+        raise ConfigError("impl 'warp' needs a CUDA GPU and warp-lang (pip install "
+                          "'eaco-jax[gpu]'); use --impl jax")
+
+
 def walk_batch(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: wr.WalkGaits,
                ctrl: wr.Controller, batch: WalkBatch, *, max_time: float,
                model: mujoco.MjModel | None = None, impl: str = "jax",
@@ -488,8 +499,7 @@ def walk_batch(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: wr.WalkGai
                distmax: float = 1.0) -> dict[str, np.ndarray]:
     """Walk ``route`` in every world of ``batch`` at once (one jitted call); per-world arrays
     (see :func:`records` for the native walker's record of each)."""
-    if impl not in IMPLS:
-        raise ConfigError(f"impl must be one of {', '.join(IMPLS)}, got {impl!r}")
+    check_impl(impl)
     route = np.asarray(route, np.float64)
     if route.ndim != 2 or route.shape[1] != 2 or len(route) < 2:
         raise ProblemError(f"route must be (k >= 2, 2) waypoints, got shape {route.shape}")
@@ -855,5 +865,5 @@ def decisions(out: dict[str, np.ndarray], b: int = 0) -> list[tuple]:
     return rows
 
 
-__all__ = ["WalkBatch", "decisions", "nominal_batch", "obstacle_distances", "records",
+__all__ = ["WalkBatch", "check_impl", "decisions", "nominal_batch", "obstacle_distances", "records",
            "walk_batch", "with_nominal", "world_batch"]

@@ -206,6 +206,10 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
     if checkpointing is not None:
         raise ConfigError("eaco walk has no checkpoints; run it again")
     check_out(s.out)
+    if s.backend == "mjx":
+        from eaco_jax.gait.walk_route_mjx import check_impl
+
+        check_impl(s.impl)  # before planning
     built = build(s)
     scene = built.problem.scene
     from eaco_jax.problems.scenes import load_scene
