@@ -112,3 +112,19 @@ def test_mo_gait_settings_errors():
         make_gait_mo_problem("nao", backend="native", constrained=True)
     with pytest.raises(ProblemError, match="no electrical motor data"):
         make_gait_mo_problem("ant", backend="native")
+
+
+def test_fronts_harness_scores_feasible_points_only(monkeypatch):
+    """experiments/gait_fronts.py: the hypervolume counts feasible points only, and the front
+    is the feasible non-dominated set (speed 0.3 at 5 min dominates speed 0.2 at 4 min)."""
+    monkeypatch.syspath_prepend(str(ROOT / "experiments"))
+    import gait_fronts as gf
+
+    f = np.asarray([[-0.3, -5.0], [-0.2, -4.0], [-0.1, -20.0], [-0.5, -30.0]])
+    v = np.asarray([0.0, 0.0, 0.0, 1.0])  # the best point is infeasible
+    ref = np.zeros(2)
+    assert gf.hypervolume(f, v, ref) == pytest.approx(0.3 * 5.0 + 0.1 * 15.0)
+    assert gf.hypervolume(f, np.ones(4), ref) == 0.0
+    np.testing.assert_array_equal(gf.nondominated(f, v), f[[0, 2]])
+    assert gf._front_rows(f, v).tolist() == [0, 2]
+    np.testing.assert_allclose(gf.natural(f[:1], "endurance"), [[0.3, 5.0]])
