@@ -3,6 +3,7 @@
     python experiments/walk_route.py --worlds 20              # default + 10 random scenes
     python experiments/walk_route.py --scenes default --worlds 2   # a smoke test
     python experiments/walk_route.py --backend mjx --impl warp --worlds 100   # MJX, a GPU
+    python experiments/walk_route.py --motors spec --worlds 20   # the spec's motor model
 
 Scenes: the shipped default and the first ``--random`` scenes ``random_scene(SEED)`` for SEED
 from 1000 on that the walking robot's plan accepts (it refuses a goal walled in once obstacles
@@ -16,6 +17,10 @@ the same worlds for every scene. One JSON per scene under experiments/results/wa
 summary.json (device, versions, command, date); ``--backend mjx`` walks the nominal and all of a
 scene's worlds in one batched MJX call and writes under experiments/results/walk_mjx/ (the
 worlds are the native backend's for the same ``--worlds``: ``sample_worlds`` of ``n`` worlds).
+``--motors spec`` walks with the robot spec's motor model (current limit, back-EMF, gear
+efficiency, targets interpolated between control steps, as the gait rollouts simulate it)
+instead of the position servos, and writes under experiments/results/walk_spec/ (walk_spec_mjx/
+with ``--backend mjx``); nothing is tuned for it.
 """
 
 from __future__ import annotations
@@ -64,14 +69,17 @@ def main() -> None:
     ap.add_argument("--backend", default="native", choices=("native", "mjx"))
     ap.add_argument("--impl", default="jax", choices=("jax", "warp"),
                     help="MJX implementation (--backend mjx)")
+    ap.add_argument("--motors", default="servo", choices=("servo", "spec"),
+                    help="motor model of the walks: position servos, or the robot spec's")
     ap.add_argument("--out", type=Path, default=None, help="default: experiments/results/"
-                    "walk, or walk_mjx with --backend mjx")
+                    "walk (walk_spec with --motors spec), + _mjx with --backend mjx")
     ap.add_argument("--skip-done", action="store_true", help="reuse a scene's walk.json "
                     "under --out where it has the same worlds, backend and settings (a run "
                     "cut short continues where it stopped; the summary covers all scenes)")
     args = ap.parse_args()
     if args.out is None:
-        args.out = HERE / "results" / ("walk" if args.backend == "native" else "walk_mjx")
+        name = "walk" if args.motors == "servo" else "walk_spec"
+        args.out = HERE / "results" / (name if args.backend == "native" else f"{name}_mjx")
     kind = get("walk")
     rows = []
     t0 = time.perf_counter()
@@ -84,7 +92,7 @@ def main() -> None:
         folder = args.out / name.replace(":", "_")
         settings = kind.make_settings({"scene": name, "worlds": args.worlds,
                                        "out": str(folder), "backend": args.backend,
-                                       "impl": args.impl})
+                                       "impl": args.impl, "motors": args.motors})
         try:
             rec = _done(folder, settings) if args.skip_done else None
             if rec is None:
@@ -110,6 +118,8 @@ def main() -> None:
                      **{k: v for k, v in w.items() if k != "walks"},
                      "closest_approach_m_successes": [x["closest_approach_m"]
                                                       for x in w["walks"] if x["success"]],
+                     "peak_current_frac_max": max((x.get("peak_current_frac") or 0.0
+                                                   for x in w["walks"]), default=None),
                      "file": _relative(folder / "walk.json")})
     done = [r for r in rows if "skipped" not in r]
     total = {"n": sum(r["n"] for r in done), "successes": sum(r["successes"] for r in done),
@@ -136,6 +146,7 @@ def main() -> None:
         "command": "python experiments/walk_route.py " + " ".join(sys.argv[1:]),
         "date": str(date.today()), "device": device_info(), "seconds": time.perf_counter() - t0,
         "backend": "native" if args.backend == "native" else f"mjx-{args.impl}",
+        "motors": args.motors,
         "seeds": {"plan": "path colony seed 0", "worlds": "test stream of run seed 0, batch 0",
                   "scenes": "default + random_scene(1000..) (planning used 0-24 and 100-124)",
                   "tuned_on": "controller settings and the walking model: random_scene("

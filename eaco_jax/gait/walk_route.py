@@ -26,10 +26,24 @@ A walk succeeds when the torso comes within ``goal_radius`` (0.15 m) of the goal
 contact between any robot geom and any obstacle geom before then. Randomised worlds
 (:mod:`eaco_jax.gait.worlds`: friction, masses, motors, target noise, latency, initial pose,
 one push during the planned walking time) enter exactly as in the gait rollouts.
+
+**Motors** (``motors``): ``"servo"`` (the default) simulates the scene model's position servos
+with the MJCF's force clamp, each control step's target held for its physics steps.
+``"spec"`` simulates the robot spec's motor model as the gait rollouts do
+(:func:`motor_physics`): with ``motors.limits_in_physics`` the actuators are direct-torque
+ones (:func:`~eaco_jax.gait.rollout_native.to_torque_actuators`) and each physics step's
+torque is :func:`~eaco_jax.gait.quality.motor_torque` of that step's joint state (current
+limit, back-EMF, gear efficiency); with ``motors.interpolate_targets`` the target moves
+linearly to the next control step's over the physics steps
+(:func:`~eaco_jax.gait.motors.physics_targets`). The next control step's target is known
+before its step cycle's decision: a new cycle's first control step runs the blend where it
+stood (its new parameters enter from the second step on), so the controller decides as with
+held targets.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import json
@@ -44,12 +58,17 @@ import mujoco
 import numpy as np
 
 from eaco_jax.errors import ConfigError, ProblemError
+from eaco_jax.gait import motors as mo
+from eaco_jax.gait import quality as ql
 from eaco_jax.gait import scene_world as sw
 from eaco_jax.gait.robot import RobotSpec
+from eaco_jax.gait.rollout_native import nominal_motor, to_torque_actuators
 from eaco_jax.gait.walk_engine import PARAM_NAMES, RAMP_TIME, joint_targets
 from eaco_jax.gait.worlds import (
+    VARIED_FIELDS,
     RobustConfig,
     Worlds,
+    actuated_dofs,
     couple_controls,
     initial_qpos,
     native_world_models,
@@ -64,6 +83,20 @@ PERIOD = PARAM_NAMES.index("period")
 STEP = PARAM_NAMES.index("step_length")
 MAX_CYCLE_STEPS = 64
 """Control steps of the longest step cycle a chunk holds (the engine's period bound / dt)."""
+MOTORS = ("servo", "spec")
+"""Walk motor models: the scene model's position servos, or the robot spec's motor model."""
+
+
+def motor_physics(spec: RobotSpec, motors: str) -> tuple[bool, bool]:
+    """``(limits in the physics, interpolated targets)`` of a walk's ``motors`` setting:
+    none for ``"servo"``, the spec's (:func:`~eaco_jax.gait.motors.physics_limits`,
+    :func:`~eaco_jax.gait.motors.interpolates_targets`, as the gait rollouts apply them) for
+    ``"spec"``."""
+    if motors not in MOTORS:
+        raise ConfigError(f"motors must be one of {', '.join(MOTORS)}, got {motors!r}")
+    if motors == "servo":
+        return False, False
+    return mo.physics_limits(spec), mo.interpolates_targets(spec)
 
 
 # --------------------------------------------------------------------------- gait library
@@ -249,6 +282,7 @@ class WorldInputs:
     push_stop: int = -1
     push_force: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
     qpos: np.ndarray | None = None  # initial configuration (None: the keyframe)
+    motor: ql.MotorParams | None = None  # the world's motor parameters (None: the model's)
 
 
 def sample_walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, n_steps: int,
@@ -272,10 +306,16 @@ def sample_walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, n_steps: 
     lo, hi = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
     stand = sw.start_qpos(spec, model, (0.0, 0.0), 0.0)  # the walk sets the start and heading
     qinit = initial_qpos(stand, wn, qadr, lo, hi, xp=np)
+    dofs = actuated_dofs(model, spec)
+    motor = [ql.motor_params({k: getattr(m, k) for k in VARIED_FIELDS}, spec, dofs,
+                             model.actuator_ctrlrange, wn.stall_scale[i], wn.speed_scale[i],
+                             xp=np) if spec.has_motors else None
+             for i, m in enumerate(models)]
     out = [WorldInputs(model=models[i], latency=int(wn.latency[i]), noise=noise[:, i],
                        push_start=int(wn.push_start[i]), push_stop=int(wn.push_stop[i]),
                        push_force=np.asarray(wn.push_force[i], np.float64),
-                       qpos=np.asarray(qinit[i], np.float64)) for i in range(n)]
+                       qpos=np.asarray(qinit[i], np.float64), motor=motor[i])
+           for i in range(n)]
     return out, worlds
 
 
@@ -329,7 +369,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
          ctrl: Controller | None = None, *, max_time: float = 60.0,
          model: mujoco.MjModel | None = None, world: WorldInputs | None = None,
          record_every: int = 5, distmax: float = 1.0,
-         decisions: list | None = None) -> dict[str, Any]:
+         decisions: list | None = None, motors: str = "servo") -> dict[str, Any]:
     """Walk ``route`` (``(k, 2)`` waypoints, start first) through ``scene`` for at most
     ``max_time`` seconds; the walk's record (trajectory, success, times, closest approach).
 
@@ -337,6 +377,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
     facing :func:`start_heading`), built if not given; ``world`` one randomised world's inputs.
     The trajectory keeps every ``record_every``-th control step; ``decisions``, if a list,
     receives ``(t, segment, heading error, mode, steer, step)`` at every step cycle.
+    ``motors``: ``"servo"`` or ``"spec"`` (the robot spec's motor model, see the module).
     """
     ctrl = ctrl or Controller()
     route = np.asarray(route, np.float64)
@@ -347,8 +388,18 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
     heading0 = start_heading(scene, route)
     if model is None:
         model = sw.scene_model(scene, spec, start_heading=heading0)
+    limits, interpolate = motor_physics(spec, motors)
     world = world or WorldInputs()
     m = world.model or model
+    mm = mo.motor_model(spec)  # None: no electrical data, no currents
+    mp = None
+    dofs = np.asarray(actuated_dofs(m, spec))
+    qadr = np.array([m.joint(j).qposadr[0] for j in spec.joint_names])
+    if mm is not None:
+        mp = world.motor if world.motor is not None else nominal_motor(spec, m)
+        mp = ql.MotorParams(*(np.asarray(x, np.float64) for x in mp))
+    if limits:
+        m = to_torque_actuators(copy.copy(m), dofs, mo.friction_share(spec))
     data = mujoco.MjData(m)
     data.qpos[:] = (world.qpos if world.qpos is not None
                     else sw.start_qpos(spec, m, tuple(route[0]), heading0))
@@ -372,6 +423,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
     p_old = p_new = None
     phase, alpha = 0.0, 1.0
     chunk: np.ndarray | None = None
+    chunk_next: np.ndarray | None = None  # the target after the chunk's last
     chunk_pos = 0
     history: list[np.ndarray] = []
     rows: list[list[float]] = []
@@ -380,6 +432,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
     contact_time, contact_obstacle = None, -1
     fell_time = reach_time = None
     switches = 0
+    peak_current = 0.0
     k = 0
     yaws: list[float] = [heading0]
     for k in range(n_steps):
@@ -408,19 +461,33 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
             switches += int(new_mode != mode)
             mode = new_mode
             chunk, phase, alpha = _cycle(p_old, p_new, alpha, phase, k, dt,
-                                         ctrl.blend_cycles, targets_fn)
+                                         ctrl.blend_cycles, targets_fn, extra=interpolate)
+            if interpolate:
+                chunk, chunk_next = chunk[:-1], chunk[-1]
             chunk_pos = 0
         cmd = chunk[chunk_pos]
         chunk_pos += 1
         history.append(cmd)
-        u = history[max(0, len(history) - 1 - world.latency)]
-        if world.noise is not None:
-            u = u + world.noise[min(k, len(world.noise) - 1)]
-        data.ctrl[:] = couple_controls(np.asarray(u)[None], spec, xp=np)[0]
+        u = _world_target(history, k, world, spec)
         data.qfrc_applied[:3] = (world.push_force if world.push_start <= k < world.push_stop
                                  else 0.0)
-        for _ in range(sub):
+        u_next = u
+        if interpolate:
+            nxt = chunk[chunk_pos] if chunk_pos < len(chunk) else chunk_next
+            u_next = _world_target(history + [nxt], k + 1, world, spec)
+        targets = mo.physics_targets(u, u_next, sub, interpolate, np)  # (sub, nu)
+        q0, v0, v1, force = (np.empty((sub, spec.nu)) for _ in range(4))
+        for j in range(sub):
+            q0[j], v0[j] = data.qpos[qadr], data.qvel[dofs]
+            data.ctrl[:] = (ql.motor_torque(q0[j], v0[j], targets[j], mp, mm, np) if limits
+                            else targets[j])
             mujoco.mj_step(m, data)
+            v1[j], force[j] = data.qvel[dofs], data.actuator_force
+        if mm is not None:  # the currents as the gait rollouts' quality accumulators take them
+            tau, qd = ((force, v0) if limits else
+                       (ql.drive_torque(q0, v1, targets, mp, np), v1))
+            peak_current = max(peak_current, float(np.max(
+                np.abs(mo.current(tau, qd, mm, np)) / mm.i_limit)))
         modes_time[mode] += dt
         t = (k + 1) * dt
         pos = data.qpos[:2]
@@ -451,6 +518,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
                      _yaw(data.qpos[3:7]), MODES.index(mode)])
     reached = reach_time is not None
     return {
+        "motors": motors,
         "success": bool(reached and contact_time is None and fell_time is None),
         "reached": reached,
         "reach_time_s": reach_time,
@@ -466,16 +534,30 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
         "walked_length_m": _length(np.asarray([r[1:3] for r in rows])),
         "mode_seconds": {k_: round(v, 3) for k_, v in modes_time.items()},
         "gait_switches": switches,
+        "peak_current_frac": peak_current if mm is not None else None,
         "trajectory_columns": ["t", "x", "y", "yaw", "mode"],
         "trajectory": rows,
     }
 
 
+def _world_target(history: list[np.ndarray], k: int, world: WorldInputs,
+                  spec: RobotSpec) -> np.ndarray:
+    """The target control step ``k`` sends to the motors: the engine's command ``latency``
+    steps back in ``history`` (whose last entry is step ``k``'s), plus the world's target
+    noise, the coupled joints coupled."""
+    u = history[max(0, len(history) - 1 - world.latency)]
+    if world.noise is not None:
+        u = u + world.noise[min(k, len(world.noise) - 1)]
+    return couple_controls(np.asarray(u)[None], spec, xp=np)[0]
+
+
 def _cycle(p_old: np.ndarray, p_new: np.ndarray, alpha: float, phase: float, k0: int,
-           dt: float, blend_cycles: float, targets_fn) -> tuple[np.ndarray, float, float]:
+           dt: float, blend_cycles: float, targets_fn,
+           extra: bool = False) -> tuple[np.ndarray, float, float]:
     """Targets ``(L, nu)`` of one step cycle from control step ``k0`` (until the phase passes
     its next whole cycle), the parameters blending from ``p_old`` to ``p_new``; the phase and
-    the blend after it."""
+    the blend after it. ``extra``: one more row, the next cycle's first target (that step
+    runs the blend where it stands, whatever the next decision)."""
     params, times = [], []
     end = math.floor(phase + 1e-9) + 1
     k = k0
@@ -489,7 +571,12 @@ def _cycle(p_old: np.ndarray, p_new: np.ndarray, alpha: float, phase: float, k0:
         if phase >= end - 1e-9:
             break
     n = len(params)
-    pad = MAX_CYCLE_STEPS - n
+    if extra:
+        p = (1 - alpha) * p_old + alpha * p_new
+        params.append(p)
+        times.append(_phase_time(k, dt, phase, float(p[PERIOD])))
+        n += 1
+    pad = MAX_CYCLE_STEPS + int(extra) - n
     P = np.concatenate([np.asarray(params), np.repeat(np.asarray(params)[-1:], pad, 0)])
     T = np.concatenate([np.asarray(times), np.full(pad, times[-1])])
     out = np.asarray(targets_fn(jnp.asarray(P, jnp.float32), jnp.asarray(T, jnp.float32)))
@@ -511,6 +598,7 @@ def _length(xy: np.ndarray) -> float:
     return float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1))) if len(xy) > 1 else 0.0
 
 
-__all__ = ["FORWARD", "LEFT", "MODES", "RIGHT", "Choice", "Controller", "WalkGaits", "WorldInputs",
-           "choose", "gait_params", "ground_height", "load_walk_gaits", "polygon_distance",
-           "sample_walk_worlds", "start_heading", "track", "walk", "wrap"]
+__all__ = ["FORWARD", "LEFT", "MODES", "MOTORS", "RIGHT", "Choice", "Controller", "WalkGaits",
+           "WorldInputs", "choose", "gait_params", "ground_height", "load_walk_gaits",
+           "motor_physics", "polygon_distance", "sample_walk_worlds", "start_heading", "track",
+           "walk", "wrap"]

@@ -34,10 +34,15 @@ axis by the prism's planes; the separating-axis test for a box); an overlap's va
 negative but not MuJoCo's penetration depth. Distances are capped at ``distmax`` (1 m) as on
 native.
 
-The motor model is the native walker's: the scene model's actuators as compiled (position
-servos with the MJCF's force clamp); ``limits=True`` instead applies the motor limits in the
-physics through :mod:`eaco_jax.gait.rollout_mjx`'s direct-torque path
-(:func:`~eaco_jax.gait.quality.motor_torque` each physics step).
+The motor model is the native walker's ``motors`` setting
+(:func:`~eaco_jax.gait.walk_route.motor_physics`): ``"servo"``, the scene model's actuators as
+compiled (position servos with the MJCF's force clamp, targets held); ``"spec"``, the robot
+spec's motor model as the gait rollouts apply it: the limits in the physics through
+:mod:`eaco_jax.gait.rollout_mjx`'s direct-torque path
+(:func:`~eaco_jax.gait.quality.motor_torque` each physics step) and the targets interpolated
+toward the next control step's (:func:`~eaco_jax.gait.motors.physics_targets`; the next
+step's target is the blend where it stands, which a new cycle's decision does not change).
+``limits=True`` alone applies the limits with held targets.
 ``impl="warp"`` runs MuJoCo Warp (CUDA) with contact buffers sized for the NAO's soles on the
 floor plus :data:`SCENE_CONTACTS_PER_SOLE` obstacle or ramp contacts per sole.
 Only every ``record_every``-th control step's ``(x, y, yaw, mode)`` is kept.
@@ -496,10 +501,13 @@ def walk_batch(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: wr.WalkGai
                ctrl: wr.Controller, batch: WalkBatch, *, max_time: float,
                model: mujoco.MjModel | None = None, impl: str = "jax",
                limits: bool = False, record_every: int = 5,
-               distmax: float = 1.0) -> dict[str, np.ndarray]:
+               distmax: float = 1.0, motors: str = "servo") -> dict[str, np.ndarray]:
     """Walk ``route`` in every world of ``batch`` at once (one jitted call); per-world arrays
-    (see :func:`records` for the native walker's record of each)."""
+    (see :func:`records` for the native walker's record of each). ``motors``: ``"servo"`` or
+    ``"spec"`` (:func:`~eaco_jax.gait.walk_route.motor_physics`); ``limits`` also applies the
+    motor limits under ``"servo"``."""
     check_impl(impl)
+    spec_limits, interpolate = wr.motor_physics(spec, motors)
     route = np.asarray(route, np.float64)
     if route.ndim != 2 or route.shape[1] != 2 or len(route) < 2:
         raise ProblemError(f"route must be (k >= 2, 2) waypoints, got shape {route.shape}")
@@ -515,9 +523,9 @@ def walk_batch(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: wr.WalkGai
     if model is None:
         model = sw.scene_model(scene, spec, start_heading=heading0)
     n_steps = int(math.ceil(max_time / dt))
-    fn = _compiled(_Static.of(scene, route, spec, gaits, ctrl, model, impl, limits,
-                              record_every, distmax, n_steps, len(batch.index),
-                              int(np.max(batch.latency)) + 1))
+    fn = _compiled(_Static.of(scene, route, spec, gaits, ctrl, model, impl,
+                              bool(limits) or spec_limits, record_every, distmax, n_steps,
+                              len(batch.index), int(np.max(batch.latency)) + 1, interpolate))
     key = batch.noise_key if batch.noise_key is not None else jax.random.PRNGKey(0)
     inputs = (jnp.asarray(route, jnp.float32), jnp.float32(heading0), jnp.asarray(batch.qpos),
               {k: jnp.asarray(v) for k, v in batch.fields.items()},
@@ -532,6 +540,8 @@ def walk_batch(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: wr.WalkGai
     out["record_every"] = record_every
     out["n_steps"] = n_steps
     out["distmax"] = distmax
+    out["motors"] = motors
+    out["has_currents"] = mo.motor_model(spec) is not None
     return out
 
 
@@ -554,15 +564,18 @@ class _Static:
     n_steps: int
     batch: int
     lat_max: int
+    interpolate: bool = False
 
     @staticmethod
     def of(scene, route, spec, gaits, ctrl, model, impl, limits, record_every, distmax,
-           n_steps, batch, lat_max) -> _Static:
+           n_steps, batch, lat_max, interpolate=False) -> _Static:
         lib = np.stack([gaits.of(m) for m in wr.MODES]).astype(np.float32)
         key = (id(model), id(scene), len(route), spec.name, lib.tobytes(), ctrl, impl,
-               bool(limits), record_every, distmax, n_steps, batch, lat_max)
+               bool(limits), record_every, distmax, n_steps, batch, lat_max,
+               bool(interpolate))
         return _Static(key, scene, route, spec, lib, ctrl, model, impl, bool(limits),
-                       record_every, float(distmax), n_steps, batch, lat_max)
+                       record_every, float(distmax), n_steps, batch, lat_max,
+                       bool(interpolate))
 
     def __hash__(self) -> int:
         return hash(self.key)
@@ -606,7 +619,7 @@ def _compiled(st: _Static):
         njmax = rows + extra * max(1, 2 * (condim - 1))
         naconmax = per_world * nb
         dw = mjx.make_data(model, impl="warp", naconmax=naconmax, njmax=njmax)
-    mlim = mo.motor_model(spec) if st.limits else None
+    mlim = mo.motor_model(spec)  # None: no electrical data (no limits, no currents)
     n_samples = -(-st.n_steps // st.record_every)
 
     def run(route, heading0, qpos0, fields, latency, noise_key, noise_std, noise_rows,
@@ -622,17 +635,28 @@ def _compiled(st: _Static):
         data = jax.vmap(lambda m_, q: mjx.forward(m_, d0.replace(qpos=q)), in_axes=(axes, 0))(
             mmb, qpos0)
         mp = None
-        if st.limits:
+        if mlim is not None:
             mp = ql.motor_params(servo_fields, spec, dofs, model.actuator_ctrlrange,
                                  stall_scale, speed_scale)
             mp = ql.MotorParams(*(jnp.broadcast_to(jnp.asarray(x, jnp.float32), (nb, nu))
                                   for x in mp))
 
-        def physics(dd):
+        def physics(dd, peak):
+            """One physics step to the target ``dd.ctrl``; ``peak``: the largest motor
+            current so far as a fraction of the limit (the gait rollouts' currents)."""
+            q0, v0 = dd.qpos[:, qadr], dd.qvel[:, dofs]
             if st.limits:
-                tau = ql.motor_torque(dd.qpos[:, qadr], dd.qvel[:, dofs], dd.ctrl, mp, mlim)
-                return step(mmb, dd.replace(ctrl=tau)).replace(ctrl=dd.ctrl)
-            return step(mmb, dd)
+                tau = ql.motor_torque(q0, v0, dd.ctrl, mp, mlim)
+                dn = step(mmb, dd.replace(ctrl=tau)).replace(ctrl=dd.ctrl)
+                qd = v0
+            else:
+                dn = step(mmb, dd)
+                if mlim is None:
+                    return dn, peak
+                qd = dn.qvel[:, dofs]
+                tau = ql.drive_torque(q0, qd, dd.ctrl, mp)
+            frac = jnp.abs(mo.current(tau, qd, mlim)) / jnp.asarray(mlim.i_limit, tau.dtype)
+            return dn, jnp.maximum(peak, jnp.max(frac, -1))
 
         z = jnp.zeros((nb,), jnp.float32)
         zi = jnp.zeros((nb,), jnp.int32)
@@ -656,6 +680,7 @@ def _compiled(st: _Static):
             "end_step": jnp.full((nb,), st.n_steps, jnp.int32),
             "end_pose": jnp.zeros((nb, 3), jnp.float32),
             "mode_steps": jnp.zeros((nb, 3), jnp.int32),
+            "peak_current": z,
         }
         hist = jnp.zeros((nb, lat_max, nu), jnp.float32)
 
@@ -687,15 +712,21 @@ def _compiled(st: _Static):
                                       error, mode.astype(jnp.float32), steer, stp]),
                     "ndec": s["ndec"] + 1}
 
-        def advance(s, pos, k):
-            """One control step of one world's controller: its parameters and engine time."""
-            s = jax.tree.map(lambda new, old: jnp.where(s["need"], new, old),
-                             decide(s, pos, k), s)
+        def engine(s, k):
+            """The blended parameters and the engine time of control step ``k``."""
             p = (1 - s["alpha"]) * s["p_old"] + s["alpha"] * s["p_new"]
             period = p[PERIOD]
             m_ramp = jnp.ceil(RAMP_TIME / period) + 1
             t_eng = jnp.where(k < ramp_steps, k * dt,
                               (m_ramp + jnp.mod(s["frac"], 1.0)) * period)
+            return p, t_eng
+
+        def advance(s, pos, k):
+            """One control step of one world's controller: its parameters and engine time."""
+            s = jax.tree.map(lambda new, old: jnp.where(s["need"], new, old),
+                             decide(s, pos, k), s)
+            p, t_eng = engine(s, k)
+            period = p[PERIOD]
             frac = s["frac"] + dt / period
             alpha = jnp.minimum(1.0, s["alpha"] + dt / (c.blend_cycles * s["p_new"][PERIOD]))
             cyc = s["cyc"] + 1
@@ -706,6 +737,14 @@ def _compiled(st: _Static):
 
         targets_of = jax.vmap(lambda p, t: joint_targets(p, t, spec))
 
+        def world_target(hist, k):
+            """The coupled target each world sends at control step ``k`` from the engine's
+            commands ``hist`` (last: step ``k``'s): latency, then target noise."""
+            u = jnp.take_along_axis(hist, (lat_max - 1 - latency)[:, None, None], 1)[:, 0]
+            noise = jax.random.normal(jax.random.fold_in(noise_key, k), (n_draw, nu),
+                                      jnp.float32)
+            return couple_controls(u + noise_std[:, None] * noise[noise_rows], spec)
+
         def control_step(carry, k):
             d, s, stt, hist = carry
             pos = d.qpos[:, :2]
@@ -713,16 +752,24 @@ def _compiled(st: _Static):
             cmd = targets_of(p, t_eng)
             hist = jnp.where(k == 0, jnp.broadcast_to(cmd[:, None], hist.shape),
                              jnp.concatenate([hist[:, 1:], cmd[:, None]], 1))
-            u = jnp.take_along_axis(hist, (lat_max - 1 - latency)[:, None, None], 1)[:, 0]
-            noise = jax.random.normal(jax.random.fold_in(noise_key, k), (n_draw, nu),
-                                      jnp.float32)
-            u = u + noise_std[:, None] * noise[noise_rows]
-            u = couple_controls(u, spec)
+            u = world_target(hist, k)
             on = (k >= push_start) & (k < push_stop)
             qfrc = jnp.zeros((nb, model.nv), jnp.float32).at[:, :3].set(
                 jnp.where(on[:, None], push_force, 0.0))
             d = d.replace(ctrl=u, qfrc_applied=qfrc)
-            d = jax.lax.fori_loop(0, sub, lambda _, dd: physics(dd), d)
+            if st.interpolate:
+                # the next control step's target: the blend where it stands (a new cycle's
+                # decision changes only what follows), after this step's latency and noise
+                p_next, t_next = jax.vmap(engine, in_axes=(0, None))(s, k + 1)
+                nxt = targets_of(p_next, t_next)
+                u_next = world_target(jnp.concatenate([hist[:, 1:], nxt[:, None]], 1),
+                                      jnp.minimum(k + 1, st.n_steps - 1))
+                us = mo.physics_targets(u, u_next, sub, True)  # (nb, sub, nu)
+                d, peak = jax.lax.fori_loop(
+                    0, sub, lambda j, c_: physics(c_[0].replace(ctrl=us[:, j]), c_[1]),
+                    (d, z))
+            else:
+                d, peak = jax.lax.fori_loop(0, sub, lambda _, c_: physics(*c_), (d, z))
             # observations after the step
             active = stt["active"] & (k < st.n_steps)
             q = d.qpos
@@ -762,6 +809,8 @@ def _compiled(st: _Static):
                                       jnp.concatenate([pos, yaw[:, None]], 1),
                                       stt["end_pose"]),
                 "mode_steps": mode_steps,
+                "peak_current": jnp.where(active, jnp.maximum(stt["peak_current"], peak),
+                                          stt["peak_current"]),
             }
             if warp:
                 stt = {**stt, "peak": jnp.maximum(stt["peak"], jnp.stack(
@@ -830,6 +879,7 @@ def records(out: dict[str, np.ndarray], route: np.ndarray) -> list[dict[str, Any
         reached = reach >= 0
         xy = np.asarray([r[1:3] for r in rows])
         recs.append({
+            "motors": str(out.get("motors", "servo")),
             "success": bool(reached and contact < 0 and fall < 0),
             "reached": reached,
             "reach_time_s": (reach + 1) * dt if reached else None,
@@ -847,6 +897,8 @@ def records(out: dict[str, np.ndarray], route: np.ndarray) -> list[dict[str, Any
             "mode_seconds": {m: round(float(out["mode_steps"][b, i]) * dt, 3)
                              for i, m in enumerate(wr.MODES)},
             "gait_switches": int(out["switches"][b]),
+            "peak_current_frac": (float(out["peak_current"][b]) if out.get("has_currents")
+                                  else None),
             "trajectory_columns": ["t", "x", "y", "yaw", "mode"],
             "trajectory": rows,
         })

@@ -16,7 +16,10 @@ low end only (``--ramps cross`` plans across ramps as the scene's cost model all
 The planner prices what the controller does (``--speeds walk``, the default): the flat speed
 and the yaw rate of the gait library's ``planning`` entry, fitted to this controller's walks on
 tuning scenes; ``--speeds nao`` prices the path planner's own gait table (turning on the spot).
-Outputs in ``--out``: ``walk.json`` and ``walk.png`` (top view: planned and walked routes).
+``--motors spec`` walks with the robot spec's motor model (limits in the physics,
+interpolated targets; :func:`~eaco_jax.gait.walk_route.motor_physics`) instead of the
+position servos. Outputs in ``--out``: ``walk.json`` and ``walk.png`` (top view: planned and
+walked routes).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ PLANNERS = ("path-eaco", "path-ga", "optimal")
 BACKENDS = ("native", "mjx")
 IMPLS = ("jax", "warp")
 RAMP_MODES = ("avoid", "cross")
+MOTORS = ("servo", "spec")
 PLAN_ITERATIONS = 150
 
 
@@ -82,6 +86,10 @@ class WalkSettings:
                            choices=BACKENDS)
     impl: str = setting("jax", "MJX implementation (--backend mjx): jax, or warp (MuJoCo "
                         "Warp, CUDA only)", choices=IMPLS)
+    motors: str = setting("servo", "motor model of the walk: the scene model's position "
+                          "servos with held targets, or the robot spec's (current limit, "
+                          "back-EMF, gear efficiency, targets interpolated between control "
+                          "steps) as the gait rollouts simulate it", choices=MOTORS)
     out: str | None = setting(None, "folder for walk.json and walk.png")
 
     def __post_init__(self) -> None:
@@ -229,7 +237,8 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
         nominal, walks = _walk_mjx(s, original, route, spec, gaits, ctrl, model, heading,
                                    max_time, planned)
     else:
-        nominal = wr.walk(original, route, spec, gaits, ctrl, max_time=max_time, model=model)
+        nominal = wr.walk(original, route, spec, gaits, ctrl, max_time=max_time, model=model,
+                          motors=s.motors)
     if s.worlds and s.backend == "native":
         steps = int(math.ceil(max_time / spec.control_dt))
         push_steps = int(math.ceil(planned / spec.control_dt))
@@ -237,7 +246,7 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
                                           seed=int(s.seed), stream=s.stream)
         for i, world in enumerate(inputs):
             w = wr.walk(original, route, spec, gaits, ctrl, max_time=max_time, model=model,
-                        world=world, record_every=10)
+                        world=world, record_every=10, motors=s.motors)
             w["world"] = i
             walks.append(w)
     seconds = time.perf_counter() - t0
@@ -246,6 +255,7 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
         "scene_source": s.scene,
         "robot": spec.name,
         "backend": s.backend if s.backend == "native" else f"mjx-{s.impl}",
+        "motors": s.motors,
         "planning": {**plan_info, "clearance_m": scene.clearance, "ramps": s.ramps,
                      "speeds": s.speeds,
                      "speed_mps": float(table.speed(0.0)),
@@ -293,7 +303,7 @@ def _walk_mjx(s: WalkSettings, scene: Any, route: np.ndarray, spec: Any, gaits: 
     else:
         batch = wm.nominal_batch(model, spec, route[0], heading)
     out = wm.walk_batch(scene, route, spec, gaits, ctrl, batch, max_time=max_time,
-                        model=model, impl=s.impl)
+                        model=model, impl=s.impl, motors=s.motors)
     recs = wm.records(out, route)
     nominal = recs[0]
     walks = []
