@@ -60,6 +60,43 @@ def _done(folder: Path, settings) -> dict | None:
     return rec if rec.get("settings") == dataclasses.asdict(settings) else None
 
 
+def compare(out: Path, other: Path, command: str) -> dict:
+    """Paired comparison of the walks under ``out`` with those under ``other`` (the same
+    scenes and worlds, e.g. ``--motors spec`` against the servos): per scene and in total
+    the walks that succeed in both, only here, only there, and the exact two-sided McNemar
+    p-value of the discordant pairs; written to ``out``/compare.json."""
+    import json
+    from math import comb
+
+    def mcnemar(b: int, c: int) -> float:
+        n = b + c
+        return min(1.0, 2.0 * sum(comb(n, i) for i in range(min(b, c) + 1)) / 2.0**n) if n \
+            else 1.0
+
+    rows, tot = [], {"both": 0, "here_only": 0, "there_only": 0, "neither": 0}
+    for path in sorted(out.glob("*/walk.json")):
+        here = json.loads(path.read_text())
+        there = json.loads((other / path.parent.name / "walk.json").read_text())
+        row = {"scene": here["scene_source"], "both": 0, "here_only": 0, "there_only": 0,
+               "neither": 0}
+        for a, b in zip(here["worlds"]["walks"], there["worlds"]["walks"], strict=True):
+            if a["world"] != b["world"]:
+                raise ValueError(f"{path}: worlds differ ({a['world']} vs {b['world']})")
+            key = ("both" if a["success"] and b["success"] else "here_only" if a["success"]
+                   else "there_only" if b["success"] else "neither")
+            row[key] += 1
+            tot[key] += 1
+        row["mcnemar_p"] = mcnemar(row["here_only"], row["there_only"])
+        rows.append(row)
+    tot["mcnemar_p"] = mcnemar(tot["here_only"], tot["there_only"])
+    rec = {"command": command, "date": str(date.today()), "device": device_info(),
+           "here": _relative(out), "there": _relative(other),
+           "pairing": "the same scene and world (test stream of run seed 0, worlds 0-19)",
+           "total": tot, "scenes": rows}
+    write_json(out / "compare.json", rec)
+    return rec
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenes", default=None, help="comma-separated scenes (default: "
@@ -76,10 +113,18 @@ def main() -> None:
     ap.add_argument("--skip-done", action="store_true", help="reuse a scene's walk.json "
                     "under --out where it has the same worlds, backend and settings (a run "
                     "cut short continues where it stopped; the summary covers all scenes)")
+    ap.add_argument("--compare", type=Path, default=None, help="no walks: pair the walks "
+                    "under --out with those under this folder (same scenes and worlds) and "
+                    "write --out/compare.json")
     args = ap.parse_args()
     if args.out is None:
         name = "walk" if args.motors == "servo" else "walk_spec"
         args.out = HERE / "results" / (name if args.backend == "native" else f"{name}_mjx")
+    if args.compare is not None:
+        rec = compare(args.out, args.compare,
+                      "python experiments/walk_route.py " + " ".join(sys.argv[1:]))
+        print(rec["total"])
+        return
     kind = get("walk")
     rows = []
     t0 = time.perf_counter()
