@@ -23,11 +23,13 @@ SHORT = 1.5  # s: the start-up ramp and the first steered cycles
 WALK_TIME = 3.0  # s (slow test): three decisions steer the first corner
 
 #: torso path MJX-JAX (float32) vs native (float64), both under motors="spec", the tiny
-#: scene, WALK_TIME: measured 1.3e-5 m in the nominal world and 1.2e-3 m in world 1 of 2
-#: (noise, push; the native walk itself moves 6e-7 m for a 1e-6 rad change of the initial
-#: joints, so this is float32 physics through the current limit's clip); 5 mm is a twentieth
-#: of a step and fails for one control step's shift of any decision
-PATH_TOL = 5e-3
+#: scene, WALK_TIME: measured 1.3e-5 m in the nominal world, 3.1e-5 m in world 1 of 2 (its push
+#: at 2.5 s); 1 mm, a hundredth of a step, fails for one control step's shift of any decision
+PATH_TOL = 1e-3
+#: a randomised world may drift further: in world 1 of another draw (a 2 s walk, its push at
+#: 1.5 s) the paths agree within 2e-6 m until the push and part by 1.2e-3 m 0.4 s after it
+#: (float32 physics through the current limit's clip; the native walk moves 6e-7 m for a
+#: 1e-6 rad change of the initial joints); 5 mm, a twentieth of a step
 WORLD_PATH_TOL = 5e-3
 
 
