@@ -59,6 +59,9 @@ def main() -> None:
                     "--speeds): 'walk' or a gait speed table such as 'nao'")
     ap.add_argument("--gaits", default="nao", help="comma-separated gait libraries (a shipped "
                     "name or a JSON file, as eaco walk --gaits): every config walks with each")
+    ap.add_argument("--plan", default="{}", help="JSON object of further planning settings "
+                    "(eaco walk's WalkSettings fields, e.g. clearance or a gait library whose "
+                    "planning entry the route prices): every config walks these routes")
     ap.add_argument("--stream", default="selection", choices=("selection", "optimisation"))
     ap.add_argument("--out", type=Path, default=HERE / "results" / "walk" / "tuning.json")
     args = ap.parse_args()
@@ -71,11 +74,14 @@ def main() -> None:
     spec = load_robot("nao")
     libraries = [(g, wr.load_walk_gaits(g)) for g in args.gaits.split(",")]
     configs = json.loads(args.configs)
+    plan_settings = json.loads(args.plan)
+    if not isinstance(plan_settings, dict):
+        raise SystemExit(f"--plan must be a JSON object of WalkSettings fields, got {args.plan}")
     t0 = time.perf_counter()
     setups = []
     routes: dict[str, dict[str, float]] = {}
     for name in args.scenes.split(","):
-        s = rw.WalkSettings(scene=name, speeds=args.speeds)
+        s = rw.WalkSettings(scene=name, speeds=args.speeds, **plan_settings)
         try:
             built = rw.build(s)
         except ProblemError as err:
@@ -127,7 +133,8 @@ def main() -> None:
         "date": str(date.today()), "device": device_info(), "seconds": time.perf_counter() - t0,
         "seeds": {"plan": "path colony seed 0", "worlds": f"{args.stream} stream of run seed "
                   "0, batch 0", "scenes": "random_scene(2000..): tuning only"},
-        "scenes": [s[0] for s in setups], "routes": routes, "configs": rows})
+        "plan": plan_settings, "scenes": [s[0] for s in setups], "routes": routes,
+        "configs": rows})
 
 
 if __name__ == "__main__":
