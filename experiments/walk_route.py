@@ -134,7 +134,8 @@ def main() -> None:
         names.append(f"random:{seed}")
         seed += 1
     for name in names:
-        folder = args.out / name.replace(":", "_")
+        folder = args.out / (Path(name).stem if name.endswith(".json")
+                             else name.replace(":", "_"))
         settings = kind.make_settings({"scene": name, "worlds": args.worlds,
                                        "out": str(folder), "backend": args.backend,
                                        "impl": args.impl, "motors": args.motors})
