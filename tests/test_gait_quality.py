@@ -76,6 +76,49 @@ def test_control_accumulators_on_a_constructed_case(xp):
         assert float(a["min_gap"][0]) == pytest.approx(0.01 - 2 * ql.FOOT_EDGE, abs=1e-6)
 
 
+
+def _posed(rot, pivot, shift=(0.0, 0.0)):
+    """One foot's four sole spheres (4, 3) of :func:`_feet`'s layout, flat at the radius, rotated
+    by the matrix ``rot`` about the point ``pivot`` and moved by ``shift`` horizontally."""
+    r = 0.008
+    off = np.array([[0.02, 0.02, r], [0.02, -0.02, r], [-0.02, 0.02, r], [-0.02, -0.02, r]])
+    pts = (off - pivot) @ np.asarray(rot).T + pivot
+    return pts + np.array([shift[0], shift[1], 0.0])
+
+
+def _rot(axis, a):
+    c, s = np.cos(a), np.sin(a)
+    return {"y": [[c, 0, -s], [0, 1, 0], [s, 0, c]], "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]]}[axis]
+
+
+FAR = np.array([[0.0, -0.2, 0.5]] * 4)  # the other foot, in the air
+
+
+@pytest.mark.parametrize("xp", [np, jnp], ids=["numpy", "jax"])
+@pytest.mark.parametrize("case,expect", [
+    ("slide", 0.01),  # flat, every sphere slides 1 cm
+    ("roll_heel", 0.0),  # heel-to-toe: the toe lifts 0.5 rad about the heel spheres' line
+    ("pivot", 0.0),  # yaw 0.3 rad about one sphere
+    ("air", 0.0),  # moving 5 cm a few cm above the floor
+    ("landing", 0.0),  # in the air, then down 3 cm further on
+])
+def test_slip_is_the_contact_points_sliding(xp, case, expect):
+    eye, heel = np.eye(3), np.array([-0.02, 0.0, 0.008])
+    a, b = {
+        "slide": (_posed(eye, heel), _posed(eye, heel, (0.01, 0.0))),
+        "roll_heel": (_posed(eye, heel), _posed(_rot("y", 0.5), heel)),
+        "pivot": (_posed(eye, heel), _posed(_rot("z", 0.3), np.array([-0.02, -0.02, 0.0]))),
+        "air": (_posed(eye, heel) + [0, 0, 0.03], _posed(eye, heel, (0.05, 0)) + [0, 0, 0.03]),
+        "landing": (_posed(eye, heel) + [0, 0, 0.03], _posed(eye, heel, (0.03, 0.0))),
+    }[case]
+    soles = np.stack([np.concatenate([a, FAR]), np.concatenate([b, FAR])])[None]
+    acc = ql.add_control(ql.new_acc((1,), NU, xp), xp.asarray(soles.astype(np.float32)),
+                         xp.asarray(np.ones((1, 2), bool)), np.array([0, 0, 1.0]), 0.008, xp)
+    assert float(acc["slip"][0]) == pytest.approx(expect, abs=1e-6)
+    centre = np.linalg.norm(b[:, :2].mean(0) - a[:, :2].mean(0))
+    if case in ("roll_heel", "pivot"):  # the foot's centre moves: what the figure no longer counts
+        assert centre > 2e-3
+
 def _slow_walk(**kw):
     g = dict(step_length=0.06, hip_height=0.21, duty_ratio=0.6, period=0.5, foot_lift=0.02,
              step_width=0.01, lateral_sway=0.02, torso_pitch=0.05, arm_swing=0.3,

@@ -20,11 +20,16 @@ Both backends feed the same functions (``xp`` = ``numpy`` on the host for native
   in rad/s against the datasheet's nominal torque, stall torque and no-load speed, or, for a
   robot without motor data, the peak and RMS torque against the actuator's forcerange (the
   MJCF has no joint speed limit, so the speed is reported without one);
-* per control step, from the sole spheres: a foot is in contact when its lowest sphere is within
-  2 mm of the floor; foot slip = horizontal distance a foot's centre moves between two control
-  steps while in contact at both (summed over feet, metres); airborne fraction = share of control
-  steps with no foot in contact; minimum foot gap = smallest horizontal distance between a left
-  and a right sole-sphere centre minus 16 mm (each foot box reaches 8 mm beyond its spheres), so
+* per control step, from the sole spheres: a sphere is down when it is within 2 mm of the floor,
+  a foot is in contact when any of its spheres is down; foot slip = for each foot, the least
+  horizontal distance moved between two control steps by a sphere down at both (0 when none
+  is), summed over feet and steps (metres). A foot sliding flat moves every sphere by the
+  slide; a foot rolling heel-to-toe or pivoting about one sphere keeps that sphere in place
+  and counts 0 (the foot's centre, the figure before, swings with the roll); a foot that yaws
+  about one sphere while another drags counts 0 too, so the figure is a lower bound on
+  sliding (``experiments/nao_slip_audit.py`` splits both figures by spheres down); airborne
+  fraction = share of control steps with no foot in contact; minimum foot gap = smallest
+  horizontal distance between a left and a right sole-sphere centre minus 16 mm (each foot box reaches 8 mm beyond its spheres), so
   a gap <= 0 means the feet would touch.
 
 * with the robot's electrical data (:mod:`eaco_jax.gait.motors`): motor current per physics
@@ -119,7 +124,8 @@ def new_acc(batch: tuple[int, ...], nu: int, xp=jnp, motor: bool = False,
         "slip": z(), "min_gap": xp.full(batch, np.inf, xp.float32),
         "peak_speed": z(nu), "peak_torque": z(nu), "sum_tau2": z(nu),
         "peak_tau": z(nu), "peak_qdot": z(nu),
-        "prev_xy": z(2, 2), "prev_contact": xp.zeros(batch + (2,), bool),
+        "prev_xy": z(2, SOLES_PER_FOOT, 2),
+        "prev_down": xp.zeros(batch + (2, SOLES_PER_FOOT), bool),
     }
     if motor:
         acc.update({"energy_el": z(), "sum_i2": z(nu), "peak_i": z(nu), "loss_j": z(nu),
@@ -255,13 +261,10 @@ def add_control(acc: dict, soles, alive, normal, radius: float, xp=jnp) -> dict:
         return out
     height = soles @ xp.asarray(normal, xp.float32)  # (B, K, 8)
     feet = height.reshape(height.shape[:-1] + (2, SOLES_PER_FOOT))
-    contact = xp.min(feet, axis=-1) < radius + CONTACT_TOL  # (B, K, 2)
+    down = feet < radius + CONTACT_TOL  # (B, K, 2, 4) spheres
+    contact = xp.any(down, axis=-1)  # (B, K, 2)
     xy = soles[..., :2].reshape(soles.shape[:-2] + (2, SOLES_PER_FOOT, 2))
-    centre = xp.mean(xy, axis=-2)  # (B, K, 2, 2)
-    prev = xp.concatenate([acc["prev_xy"][:, None], centre[:, :-1]], axis=1)
-    prev_c = xp.concatenate([acc["prev_contact"][:, None], contact[:, :-1]], axis=1)
-    step = xp.sqrt(xp.sum((centre - prev) ** 2, axis=-1))  # (B, K, 2)
-    slid = xp.where(contact & prev_c & alive[..., None], step, 0.0)
+    slid = xp.where(alive[..., None], _contact_slip(acc, xy, down, xp), 0.0)
     left, right = xy[..., 0, :, None, :], xy[..., 1, None, :, :]
     pair = xp.sqrt(xp.sum((left - right) ** 2, axis=-1))  # (B, K, 4, 4)
     gap = xp.min(pair.reshape(pair.shape[:-2] + (-1,)), axis=-1) - 2 * FOOT_EDGE
@@ -270,9 +273,21 @@ def add_control(acc: dict, soles, alive, normal, radius: float, xp=jnp) -> dict:
     out["air_steps"] = acc["air_steps"] + xp.sum(alive & ~xp.any(contact, axis=-1), axis=-1)
     out["slip"] = acc["slip"] + xp.sum(slid, axis=(-1, -2))
     out["min_gap"] = xp.minimum(acc["min_gap"], xp.min(xp.where(alive, gap, np.inf), axis=-1))
-    out["prev_xy"] = centre[:, -1]
-    out["prev_contact"] = contact[:, -1]
+    out["prev_xy"] = xy[:, -1]
+    out["prev_down"] = down[:, -1]
     return out
+
+
+def _contact_slip(acc: dict, xy, down, xp):
+    """Per foot and control step ``(B, K, 2)``: the least horizontal distance moved since the
+    previous control step by a sole sphere down at both (0 when no sphere is); ``xy``
+    ``(B, K, 2, 4, 2)``, ``down`` ``(B, K, 2, 4)``."""
+    prev = xp.concatenate([acc["prev_xy"][:, None], xy[:, :-1]], axis=1)
+    prev_d = xp.concatenate([acc["prev_down"][:, None], down[:, :-1]], axis=1)
+    both = down & prev_d
+    move = xp.sqrt(xp.sum((xy - prev) ** 2, axis=-1))  # (B, K, 2, 4)
+    least = xp.min(xp.where(both, move, np.inf), axis=-1)
+    return xp.where(xp.any(both, axis=-1), least, 0.0)
 
 
 def finalize(acc: dict, distance, mass, dt: float, nominal, motor: mo.MotorModel | None = None
