@@ -29,8 +29,8 @@ Both backends feed the same functions (``xp`` = ``numpy`` on the host for native
   about one sphere while another drags counts 0 too, so the figure is a lower bound on
   sliding (``experiments/nao_slip_audit.py`` splits both figures by spheres down); airborne
   fraction = share of control steps with no foot in contact; minimum foot gap = smallest
-  horizontal distance between a left and a right sole-sphere centre minus 16 mm (each foot box reaches 8 mm beyond its spheres), so
-  a gap <= 0 means the feet would touch.
+  horizontal distance between a left and a right sole-sphere centre minus 16 mm (each foot box
+  reaches 8 mm beyond its spheres), so a gap <= 0 means the feet would touch.
 
 * with the robot's electrical data (:mod:`eaco_jax.gait.motors`): motor current per physics
   step (gear efficiency one way driving, the other braking), RMS current per joint against the
