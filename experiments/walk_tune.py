@@ -55,6 +55,8 @@ def main() -> None:
     ap.add_argument("--scenes", default="random:2004,random:2005,random:2006,random:2007")
     ap.add_argument("--worlds", type=int, default=8)
     ap.add_argument("--configs", default="[{}]", help="JSON list of Controller field sets")
+    ap.add_argument("--motors", default="servo", choices=("servo", "spec"),
+                    help="motor model of the walks (walk_route.MOTORS)")
     ap.add_argument("--speeds", default="walk", help="what the planner prices (eaco walk "
                     "--speeds): 'walk' or a gait speed table such as 'nao'")
     ap.add_argument("--gaits", default="nao", help="comma-separated gait libraries (a shipped "
@@ -110,14 +112,15 @@ def main() -> None:
         for name, scene, route, planned, model, max_time, inputs in setups:
             for i, world in enumerate(inputs):
                 w = wr.walk(scene, route, spec, gaits, ctrl, max_time=max_time, model=model,
-                            world=world, record_every=50)
+                            world=world, record_every=50, motors=args.motors)
                 walks.append({"scene": name, "world": i, "planned_time_s": planned,
                               **{k: w[k] for k in ("success", "fell", "contact", "reached",
                                                    "walked_time_s", "closest_approach_m",
                                                    "gait_switches", "mode_seconds")}})
         ok = [w for w in walks if w["success"]]
         ratio = [w["walked_time_s"] / w["planned_time_s"] for w in ok]
-        row = {"config": cfg, "gaits": lib, "n": len(walks), "successes": len(ok),
+        row = {"config": cfg, "gaits": lib, "motors": args.motors, "n": len(walks),
+               "successes": len(ok),
                "falls": sum(w["fell"] for w in walks),
                "contacts": sum(w["contact"] for w in walks),
                "not_reached": sum(not w["reached"] for w in walks),
