@@ -16,9 +16,9 @@ low end only (``--ramps cross`` plans across ramps as the scene's cost model all
 The planner prices what the controller does (``--speeds walk``, the default): the flat speed
 and the yaw rate of the gait library's ``planning`` entry, fitted to this controller's walks on
 tuning scenes; ``--speeds nao`` prices the path planner's own gait table (turning on the spot).
-``--motors spec`` walks with the robot spec's motor model (limits in the physics,
-interpolated targets; :func:`~eaco_jax.gait.walk_route.motor_physics`) instead of the
-position servos. Outputs in ``--out``: ``walk.json`` and ``walk.png`` (top view: planned and
+The walk simulates the robot spec's motor model (``--motors spec``, the default: limits in
+the physics, interpolated targets; :func:`~eaco_jax.gait.walk_route.motor_physics`), as the
+gait rollouts do; ``--motors servo`` walks the MJCF's position servos with held targets. Outputs in ``--out``: ``walk.json`` and ``walk.png`` (top view: planned and
 walked routes).
 """
 
@@ -86,10 +86,11 @@ class WalkSettings:
                            choices=BACKENDS)
     impl: str = setting("jax", "MJX implementation (--backend mjx): jax, or warp (MuJoCo "
                         "Warp, CUDA only)", choices=IMPLS)
-    motors: str = setting("servo", "motor model of the walk: the scene model's position "
-                          "servos with held targets, or the robot spec's (current limit, "
+    motors: str = setting("spec", "motor model of the walk: the robot spec's (current limit, "
                           "back-EMF, gear efficiency, targets interpolated between control "
-                          "steps) as the gait rollouts simulate it", choices=MOTORS)
+                          "steps) as the gait rollouts simulate it, or the scene model's "
+                          "position servos with held targets (claim "
+                          "walk-tuning-motors-spec-successes)", choices=MOTORS)
     out: str | None = setting(None, "folder for walk.json and walk.png")
 
     def __post_init__(self) -> None:
