@@ -18,8 +18,8 @@ and the yaw rate of the gait library's ``planning`` entry, fitted to this contro
 tuning scenes; ``--speeds nao`` prices the path planner's own gait table (turning on the spot).
 The walk simulates the robot spec's motor model (``--motors spec``, the default: limits in
 the physics, interpolated targets; :func:`~eaco_jax.gait.walk_route.motor_physics`), as the
-gait rollouts do; ``--motors servo`` walks the MJCF's position servos with held targets. Outputs in ``--out``: ``walk.json`` and ``walk.png`` (top view: planned and
-walked routes).
+gait rollouts do; ``--motors servo`` walks the MJCF's position servos with held targets.
+Outputs in ``--out``: ``walk.json`` and ``walk.png`` (top view: planned and walked routes).
 """
 
 from __future__ import annotations
