@@ -385,9 +385,10 @@ class ConstrainedGaitProblem(GaitProblem):
                           1 if worlds is None else worlds.size)
         return speed, vals, g
 
-    def evaluate(self, solutions: jax.Array, key: jax.Array | None = None) -> Evaluation:
-        """``Evaluation(f=-speed, violation)`` of a colony ``(m, dim)`` in the worlds ``key``
-        picks from the optimisation stream (see :class:`GaitProblem`)."""
+    def colony_in_worlds(self, solutions: jax.Array,
+                         key: jax.Array | None) -> tuple[jax.Array, Worlds | None]:
+        """A colony ``(m, dim)`` checked and clipped to the box, and the worlds ``key`` picks
+        from the optimisation stream (key-less: its batch 0; None without ``robust``)."""
         if solutions.ndim != 2 or solutions.shape[-1] != self.dim:
             raise ProblemError(
                 f"gait problem {self.name!r}: solutions must be (ants, {self.dim}), "
@@ -396,6 +397,12 @@ class ConstrainedGaitProblem(GaitProblem):
         worlds = None
         if self.robust is not None:
             worlds = self.worlds(None if key is None else optimisation_key(self.robust.seed, key))
+        return x, worlds
+
+    def evaluate(self, solutions: jax.Array, key: jax.Array | None = None) -> Evaluation:
+        """``Evaluation(f=-speed, violation)`` of a colony ``(m, dim)`` in the worlds ``key``
+        picks from the optimisation stream (see :class:`GaitProblem`)."""
+        x, worlds = self.colony_in_worlds(solutions, key)
         speed, _, g = self.constraints(x, worlds)
         speed = jnp.where(jnp.isfinite(speed), speed, 0.0).astype(self.dtype)
         return Evaluation(f=-speed, violation=gc.violation(g).astype(self.dtype))

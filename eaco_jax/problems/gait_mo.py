@@ -40,7 +40,7 @@ from flax import struct
 from eaco_jax.gait import constraints as gc
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import aggregate
-from eaco_jax.gait.worlds import RobustConfig, Worlds, optimisation_key
+from eaco_jax.gait.worlds import RobustConfig, Worlds
 from eaco_jax.problems.base import Evaluation, ProblemError
 from eaco_jax.problems.gait import ConstrainedGaitProblem, make_gait_problem
 
@@ -111,14 +111,7 @@ class MultiObjectiveGaitProblem(ConstrainedGaitProblem):
     def evaluate(self, solutions: jax.Array, key: jax.Array | None = None) -> Evaluation:
         """``Evaluation(f (m, 2), violation (m,))`` of a colony ``(m, dim)`` in the worlds
         ``key`` picks from the optimisation stream (key-less: its batch 0)."""
-        if solutions.ndim != 2 or solutions.shape[-1] != self.dim:
-            raise ProblemError(
-                f"gait problem {self.name!r}: solutions must be (ants, {self.dim}), "
-                f"got {tuple(solutions.shape)}")
-        x = jnp.clip(solutions.astype(self.dtype), self.lower, self.upper)
-        worlds = None
-        if self.robust is not None:
-            worlds = self.worlds(None if key is None else optimisation_key(self.robust.seed, key))
+        x, worlds = self.colony_in_worlds(solutions, key)
         f, g, _ = self.objectives(x, worlds)
         return Evaluation(f=f, violation=gc.violation(g).astype(self.dtype))
 
