@@ -37,6 +37,7 @@ from eaco_jax.errors import ProblemError
 from eaco_jax.gait.rollout_mjx import mjx_rollout
 from eaco_jax.gait.rollout_native import native_rollout_callback
 from eaco_jax.gait.walk_engine import PARAM_NAMES, joint_targets
+from eaco_jax.gait.walk_route import Controller
 from eaco_jax.gait.worlds import Worlds
 from eaco_jax.problems.gait import GaitProblem, body_frame_speeds, make_gait_problem
 
@@ -63,12 +64,13 @@ class SteerConfig:
 
     segments: int = 3
     error_deg: float = 75.0
-    steer_gain: float = 1.2
-    max_steer: float = 0.8
-    slow_deg: float = 15.0
-    stop_deg: float = 60.0
-    min_step: float = 0.35
-    blend_cycles: float = 0.5
+    # the route walker's rule, with its defaults (one source: walk_route.Controller)
+    steer_gain: float = Controller.steer_gain
+    max_steer: float = Controller.max_steer
+    slow_deg: float = Controller.slow_deg
+    stop_deg: float = Controller.stop_deg
+    min_step: float = Controller.min_step
+    blend_cycles: float = Controller.blend_cycles
     fall_cost: float | None = None
 
     def __post_init__(self) -> None:
