@@ -125,7 +125,9 @@ class MultiObjectiveGaitProblem(ConstrainedGaitProblem):
         """One gait's objectives, violation, feasibility and constraint table in ``worlds``."""
         p = np.asarray(params, np.float32).reshape(-1)
         if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
-            raise ProblemError(f"a gait needs {self.dim} finite parameters, got shape {p.shape}")
+            got = f"shape {p.shape}" if p.shape != (self.dim,) else \
+                f"{int(np.sum(~np.isfinite(p)))} NaN or infinite"
+            raise ProblemError(f"a gait needs {self.dim} finite parameters, got {got}")
         x = jnp.clip(jnp.asarray(p)[None], self.lower, self.upper)
         f, g, vals = jax.jit(self.objectives)(x, worlds)
         v = float(np.asarray(gc.violation(g))[0])

@@ -27,10 +27,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from eaco_jax.errors import ProblemError
@@ -57,8 +59,9 @@ class SteerConfig:
     (:class:`~eaco_jax.gait.walk_route.Controller`: the defaults are its defaults, a test
     checks they agree): ``turn_rate`` = error x ``steer_gain`` clamped to ``max_steer``; the
     step length full up to ``slow_deg`` of error, ``min_step`` of itself from ``stop_deg``.
-    ``error_deg``: the heading errors drawn, uniform in +/- this (beyond ``stop_deg`` the
-    command saturates). ``segments``: commands per rollout (one change between each).
+    ``error_deg``: the heading errors drawn, uniform in +/- this (at most 180; beyond
+    ``stop_deg`` the command saturates). ``segments``: commands per rollout (one change
+    between each).
     ``fall_cost``: metres subtracted from a world's progress when it falls (None: the
     horizon x 2 m/s, more than any NAO walk covers, so a fall ranks below every non-fall)."""
 
@@ -74,12 +77,23 @@ class SteerConfig:
     fall_cost: float | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.segments, int) or self.segments < 1:
+        for f in dataclasses.fields(self):  # NumPy scalars as Python's (JSON, hashing)
+            if isinstance(getattr(self, f.name), np.generic):
+                object.__setattr__(self, f.name, getattr(self, f.name).item())
+        if not _integer(self.segments) or self.segments < 1:
             raise ProblemError(f"steer segments must be an integer >= 1, got {self.segments!r}")
-        for name in ("error_deg", "steer_gain", "max_steer", "blend_cycles"):
+        for name in ("error_deg", "steer_gain", "max_steer", "stop_deg", "blend_cycles"):
             v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+            if not (_real(v) and math.isfinite(v) and v > 0):
                 raise ProblemError(f"steer {name} must be a finite number > 0, got {v!r}")
+        if self.error_deg > 180:
+            raise ProblemError(f"steer error_deg must be <= 180 (a heading error wraps at 180), "
+                               f"got {self.error_deg}")
+        for name in ("slow_deg", "min_step", "fall_cost"):
+            v = getattr(self, name)
+            if not (_real(v) or (name == "fall_cost" and v is None)):
+                raise ProblemError(f"steer {name} must be a number"
+                                   f"{' >= 0 or None' if name == 'fall_cost' else ''}, got {v!r}")
         if not 0 <= self.slow_deg < self.stop_deg:
             raise ProblemError(f"steer slow_deg must be in [0, stop_deg={self.stop_deg}), "
                                f"got {self.slow_deg}")
@@ -89,6 +103,16 @@ class SteerConfig:
                                                and self.fall_cost >= 0):
             raise ProblemError(f"steer fall_cost must be a finite number >= 0 or None, got "
                                f"{self.fall_cost!r}")
+
+
+def _integer(v: Any) -> bool:
+    """An integer, not a bool."""
+    return isinstance(v, numbers.Integral) and not isinstance(v, bool)
+
+
+def _real(v: Any) -> bool:
+    """A real number, not a bool."""
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
 
 
 def command_of(error: jax.Array, cfg: SteerConfig) -> tuple[jax.Array, jax.Array]:
@@ -227,6 +251,8 @@ def make_steered_problem(robot: str = "nao", *, steer: SteerConfig | None = None
     steer = SteerConfig() if steer is None else steer
     if not isinstance(steer, SteerConfig):
         raise ProblemError(f"steer must be a SteerConfig, got {type(steer).__name__}")
+    if not isinstance(walker_physics, bool | np.bool_):
+        raise ProblemError(f"walker_physics must be True or False, got {walker_physics!r}")
     base = make_gait_problem(robot, **kwargs)
     if base.spec.gait != "biped":
         raise ProblemError(f"robot {base.spec.name!r} walks a {base.spec.gait} gait: steering "

@@ -93,9 +93,10 @@ def nearest_neighbors(dist: np.ndarray, k: int) -> np.ndarray:
     return np.argsort(d, axis=1, kind="stable")[:, :k].astype(np.int32)
 
 
-def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool, int]:
+def _check_matrix(d: np.ndarray, source: str = "matrix") -> tuple[np.ndarray, bool, int]:
     """The checked float64 matrix, whether every entry is an integer and the int32 words of
-    its in-run tour sums (:func:`words_needed`)."""
+    its in-run tour sums (:func:`words_needed`); ``source`` is what the user gave ("matrix" or
+    "coordinates"), the thing a too-large refusal tells them to rescale."""
     d = np.asarray(d)
     if d.ndim != 2 or d.shape[0] != d.shape[1]:
         raise ProblemError(f"distance matrix must be square (n, n), got shape {d.shape}")
@@ -115,11 +116,11 @@ def _check_matrix(d: np.ndarray) -> tuple[np.ndarray, bool, int]:
     integer = bool(np.all(d == np.round(d)))
     if integer and d.max() >= 2**24:
         raise ProblemError(
-            "integer distances >= 2**24 cannot be held exactly in float32; rescale the matrix"
-        )
+            "integer distances >= 2**24 cannot be held exactly in float32; rescale the "
+            f"{source}")
     longest = float(d.max(axis=1).sum())  # no tour is longer than the sum of row maxima
     if not integer and longest > 1e37:
-        raise ProblemError("distances are too large for float32 sums; rescale the matrix")
+        raise ProblemError(f"distances are too large for float32 sums; rescale the {source}")
     return d, integer, words_needed(longest, d.shape[0]) if integer else 1
 
 
@@ -212,7 +213,14 @@ class TSP:
 
         An all-integer matrix gives exact integer tour lengths; any other is held in float32.
         """
-        d, integer, words = _check_matrix(d)
+        return cls._from_checked(d, name, neighbors, optimum, coords, "matrix")
+
+    @classmethod
+    def _from_checked(cls, d: np.ndarray, name: str, neighbors: int, optimum: float | None,
+                      coords: np.ndarray | None, source: str) -> TSP:
+        """:meth:`from_distance_matrix` of distances computed from ``source`` ("matrix" or
+        "coordinates": what a refusal tells the user to rescale)."""
+        d, integer, words = _check_matrix(d, source)
         nbr = nearest_neighbors(d, neighbors)
         return cls(
             dist=jnp.asarray(d, jnp.float32),
@@ -247,9 +255,7 @@ class TSP:
                     f"{', '.join(COORD_TYPES)}"
                 )
             d = coord_distances(coords, metric)
-        return cls.from_distance_matrix(
-            d, name=name, neighbors=neighbors, optimum=optimum, coords=np.asarray(coords),
-        )
+        return cls._from_checked(d, name, neighbors, optimum, np.asarray(coords), "coordinates")
 
 
 def euclidean_distances(coords: Any) -> np.ndarray:
@@ -305,10 +311,10 @@ def load_tsplib(name_or_path: str | Path, neighbors: int | None = None,
             neighbors=tsp_sparse.SPARSE_NEIGHBORS if neighbors is None else neighbors)
     check_dimension(inst.dimension, str(path))
     neighbors = DEFAULT_NEIGHBORS if neighbors is None else neighbors
-    return TSP.from_distance_matrix(
-        distance_matrix(inst), name=name, neighbors=neighbors, optimum=optimum,
-        coords=inst.coords if inst.coords is not None and len(inst.coords) else None,
-    )
+    return TSP._from_checked(
+        distance_matrix(inst), name, neighbors, optimum,
+        inst.coords if inst.coords is not None and len(inst.coords) else None,
+        "coordinates" if inst.edge_weight_type in COORD_TYPES else "matrix")
 
 
 @jax.jit

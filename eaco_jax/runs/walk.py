@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from eaco_jax.errors import ConfigError
+from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.runs.base import Built, RunKind, check_out, check_settings, setting
 
 PLANNERS = ("path-eaco", "path-ga", "optimal")
@@ -155,13 +155,26 @@ def planning_speeds(speeds: str, gaits: str) -> Any:
 
 
 def build(s: WalkSettings) -> Built:
-    """The planning problem (the scene for the walking robot) and the planner."""
+    """The planning problem (the scene for the walking robot) and the planner; a scene
+    refused only at the walk's larger clearance (the goal walled in, the start on a grown
+    obstacle) says so, naming ``--clearance``."""
     from eaco_jax.problems.scenes import build_problem, load_scene
     from eaco_jax.strategies import get
 
     scene = load_scene(s.scene)
-    problem = build_problem(planning_scene(scene, s.clearance, s.ramps),
-                            planning_speeds(s.speeds, s.gaits))
+    speeds = planning_speeds(s.speeds, s.gaits)
+    try:
+        problem = build_problem(planning_scene(scene, s.clearance, s.ramps), speeds)
+    except ProblemError as err:
+        if s.clearance <= scene.clearance:
+            raise
+        try:  # the scene's own clearance: does only the walk's larger one refuse it?
+            build_problem(planning_scene(scene, scene.clearance, s.ramps), speeds)
+        except ProblemError:
+            raise err from None
+        raise ProblemError(f"{err} (eaco walk plans at --clearance {s.clearance:g} m, above "
+                           f"the scene's {scene.clearance:g} m: pass a smaller --clearance, "
+                           "not below the NAO's half-width 0.25 m)") from None
     strategy = None if s.planner == "optimal" else get(s.planner)
     params = None if strategy is None else strategy.default_params(problem)
     return Built(problem, strategy, params, {"iterations": int(s.plan_iterations)})

@@ -353,7 +353,8 @@ class GraphEACO(Strategy):
             return problem
         if self.max_new_edges is not None:
             raise ConfigError("max_new_edges (focused construction) needs the sparse path "
-                              "(a problem without a distance matrix: sparse=True)")
+                              "(no distance matrix): pass --sparse on to eaco tsp, or "
+                              "sparse=True to load_tsplib")
         dist = getattr(problem, "dist", None)
         shape = getattr(dist, "shape", ())
         if len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3:
