@@ -2,7 +2,7 @@
 
     python experiments/bad_inputs.py            # about two minutes on a CPU
 
-Each row: what was tried, how (API / CLI / file), the first line the user sees (the
+Each row: what was tried, how (API / CLI / file / script), the first line the user sees (the
 error's message, a warning, or the relevant result fields for faults that are not errors),
 and the test(s) in tests/ that fail if that behaviour regresses (``none`` where none does).
 """
@@ -239,7 +239,9 @@ def walk_rows() -> None:
     record("`eaco walk scene.json`: goal behind a 0.7 m gap (open at the scene's clearance "
            "0.3 m, `eaco path` plans it; walled in at the 0.4 m walking clearance)", "CLI",
            lambda: cli("walk", str(gap), "--plan-iterations", "2", "--max-time", "1"),
-           test=rows + "test_walk_refuses_a_goal_walled_in_at_the_walking_clearance")
+           test=(rows + "test_walk_refuses_a_goal_walled_in_at_the_walking_clearance",
+                 "tests/test_bad_input_rows_2.py::"
+                 "test_walk_clearance_refusal_names_the_option_only_where_it_is_the_cause"))
     record("`eaco walk nosuch.json`", "CLI", lambda: cli("walk", "nosuch.json"),
            test=(cli_test, "tests/test_scenes.py::test_malformed_and_missing_files"))
     record("`eaco walk random:x`", "CLI", lambda: cli("walk", "random:x"), test=cli_test)
@@ -281,7 +283,8 @@ def sparse_tsp_rows() -> None:
            lambda: cli("tsp", "eil51", "--max-new-edges", "0"), test=cli_test)
     record("`eaco tsp eil51 --max-new-edges 5` (dense path)", "CLI",
            lambda: cli("tsp", "eil51", "--max-new-edges", "5", "--iterations", "2", "--quiet"),
-           test=cli_test)
+           test=(cli_test, "tests/test_bad_input_rows_2.py::"
+                 "test_max_new_edges_on_the_dense_path_names_the_cli_and_the_library_fix"))
     matrix = "\n".join(" ".join(str(0 if i == j else 7 * (i + j) + 3) for j in range(5))
                        for i in range(5))
     explicit = write_tsp("ex5.tsp", "NAME: ex5\nTYPE: TSP\nDIMENSION: 5\nEDGE_WEIGHT_TYPE: "
@@ -687,6 +690,10 @@ def main() -> None:
 
     sparse_tsp_rows()  # the sparse TSP path (issue 33), instances too small for local search
 
+    walk_options_and_scripts_rows()  # eaco walk --impl/--motors, the large-TSP scripts
+
+    steered_and_mo_gait_rows()  # the steered and the multi-objective gait problems' settings
+
     lines = [
         "# Bad inputs and faults, and what each gets now",
         "",
@@ -946,6 +953,102 @@ def checkpoint_folder_rows(burma: object, g: object) -> None:
            "full tmpfs in tests/test_checkpoint.py)", "API", disk_full,
            test=("tests/test_checkpoint.py::test_disk_full_during_a_save_is_one_line_and_resumes_bit_identically",
                  "tests/test_checkpoint.py::test_a_real_full_disk_during_a_save_is_one_line"))
+
+
+def walk_options_and_scripts_rows() -> None:
+    """``eaco walk``'s MJX implementation and motor model, the dense TSP path's distances from
+    coordinates, and the large-TSP scripts (issue 33): an unknown instance, no LKH binary."""
+    import contextlib
+    import io
+    import sys
+
+    rows2 = "tests/test_bad_input_rows_2.py::"
+    record("`eaco walk default --backend mjx --impl warp` on a machine without CUDA", "CLI",
+           lambda: cli("walk", "default", "--backend", "mjx", "--impl", "warp"),
+           test=rows2 + "test_walk_warp_without_cuda_is_one_line_naming_impl_jax")
+    record("`eaco walk default --motors dc` (an unknown motor model)", "CLI",
+           lambda: cli("walk", "default", "--motors", "dc"),
+           test=(rows2 + "test_walk_unknown_motor_model_is_one_line_naming_the_choices",
+                 "tests/test_walk_motors.py::test_the_setting_is_the_specs_motor_model"))
+    huge = write_tsp("huge_dense.tsp", "NAME: huge\nTYPE: TSP\nDIMENSION: 4\nEDGE_WEIGHT_TYPE: "
+                     "EUC_2D\nNODE_COORD_SECTION\n1 0 0\n2 3000000000000 0\n"
+                     "3 3000000000000 3000000000000\n4 0 3000000000000\nEOF\n")
+    rescale = rows2 + "test_too_large_distances_name_what_to_rescale"
+    record("`eaco tsp huge.tsp --sparse off`: coordinates up to 3e12 on the dense path", "CLI",
+           lambda: cli("tsp", huge, "--sparse", "off", "--local-search", "none"), test=rescale)
+    record("`TSP.from_coords` of coordinates up to 3e12 (`metric='EUC_2D'`)", "API",
+           lambda: TSP.from_coords(np.array([[0.0, 0.0], [3e12, 0.0], [3e12, 3e12]]),
+                                   metric="EUC_2D"), test=rescale)
+
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    import lkh_reference
+    import tsp_large
+
+    record("`experiments/tsp_large.py --sizes --instances no_such_instance`", "script",
+           lambda: tsp_large.main(["--sizes", "--instances", "no_such_instance", "--work",
+                                   str(TMP / "large"), "--out", str(TMP / "large.json")]),
+           test="tests/test_lkh_reference.py::test_tsp_large_names_d15112_and_refuses_unknown_names")
+
+    def no_lkh() -> str:
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            code = lkh_reference.main(["--lkh", "no_lkh", "--work",
+                                       str(TMP / "large"), "--out-dir", str(TMP / "lkh")])
+        return f"exit {code}: {out.getvalue().strip()}"
+    record("`experiments/lkh_reference.py --lkh no_lkh` (no such binary on PATH)", "script",
+           no_lkh, test="tests/test_lkh_reference.py::test_absent_binary_skips_in_one_line")
+
+
+def steered_and_mo_gait_rows() -> None:
+    """The steered gait problem (``SteerConfig``, ``make_steered_problem``) and the
+    multi-objective gait problem (``make_gait_mo_problem``): out-of-range or wrong-shaped
+    settings."""
+    from eaco_jax.gait.worlds import RobustConfig
+    from eaco_jax.problems.gait_mo import make_gait_mo_problem
+    from eaco_jax.problems.gait_steer import SteerConfig, make_steered_problem
+
+    rows2 = "tests/test_bad_input_rows_2.py::"
+    steer = rows2 + "test_steer_settings_are_one_line_naming_the_range"
+    refusals = "tests/test_gait_steer.py::test_refusals"
+    for field, value, held in (
+            ("segments", 0, (steer, refusals)), ("error_deg", 200.0, steer),
+            ("error_deg", [75.0], steer), ("stop_deg", float("nan"), steer),
+            ("slow_deg", 70.0, (steer, refusals)), ("slow_deg", "15", steer),
+            ("min_step", 1.5, (steer, refusals)), ("fall_cost", "x", steer),
+            ("fall_cost", -1.0, steer)):
+        record(f"`SteerConfig({field}={value!r})`", "API",
+               lambda f=field, v=value: SteerConfig(**{f: v}), test=held)
+    robust = RobustConfig(R=1)
+    record("`make_steered_problem('nao')` without `robust`", "API",
+           lambda: make_steered_problem("nao", backend="native"), test=refusals)
+    record("`make_steered_problem('nao', turn='left', robust=...)`", "API",
+           lambda: make_steered_problem("nao", backend="native", turn="left", robust=robust),
+           test=refusals)
+    record("`make_steered_problem('ant', robust=...)` (a quadruped)", "API",
+           lambda: make_steered_problem("ant", backend="native", robust=robust), test=refusals)
+    record("`make_steered_problem('nao', robust=..., steer={})`", "API",
+           lambda: make_steered_problem("nao", backend="native", robust=robust, steer={}),
+           test=refusals)
+    record("`make_steered_problem('nao', robust=..., walker_physics='no')`", "API",
+           lambda: make_steered_problem("nao", backend="native", robust=robust,
+                                        walker_physics="no"),
+           test=rows2 + "test_steer_takes_numpy_scalars_as_numbers_and_walker_physics_as_a_boolean")
+
+    mo = "tests/test_gait_mo.py::test_mo_gait_settings_errors"
+    record("`make_gait_mo_problem('nao', 'energy')`", "API",
+           lambda: make_gait_mo_problem("nao", "energy", backend="native"), test=mo)
+    record("`make_gait_mo_problem('nao', constrained=True)`", "API",
+           lambda: make_gait_mo_problem("nao", backend="native", constrained=True), test=mo)
+    record("`make_gait_mo_problem('ant')` (no electrical motor data)", "API",
+           lambda: make_gait_mo_problem("ant", backend="native"), test=mo)
+    problem = make_gait_mo_problem("nao", backend="native", horizon=0.2)
+    report = rows2 + "test_mo_gait_report_names_the_shape_or_the_non_finite_values"
+    record("MO gait `report` of 3 parameters (the NAO's gait has 14)", "API",
+           lambda: problem.report(np.zeros(3)), test=report)
+    record("MO gait `report` of 14 parameters, one NaN", "API",
+           lambda: problem.report(np.r_[np.zeros(13), np.nan]), test=report)
 
 
 if __name__ == "__main__":
