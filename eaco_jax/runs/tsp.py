@@ -165,11 +165,13 @@ class TspSettings:
                           choices=("auto", "on", "off"))
     neighbors: int | None = setting(None, "candidate-list length per city (default 20 with a "
                                     "distance matrix, 16 without)")
-    construction: str = setting("auto", "how tours are built (the same tours either way): "
-                                "kernel (one Pallas kernel per block of ants; compiled on a "
-                                "GPU), scan (a batched step per tour position); auto: the "
-                                "dense path's measured plan; the sparse path's scan",
-                                choices=("auto", "kernel", "scan"))
+    construction: str = setting("auto", "how tours are built: kernel (one Pallas kernel per "
+                                "block of ants; compiled on a GPU), scan (a batched step per "
+                                "tour position), both the same tours; auto: the dense path's "
+                                "measured plan, the sparse path's scan; moves (sparse path, "
+                                "with --max-new-edges N: each ant is the best tour changed by "
+                                "N 2-opt moves, a loop over the moves, not the cities)",
+                                choices=("auto", "kernel", "scan", "moves"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
                                         "tour, then follows it (default: full construction)")
@@ -218,8 +220,9 @@ def build(s: TspSettings) -> Built:
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges,
-                         construction_fallback={"scan": "lazy"}.get(s.construction,
-                                                                     s.construction))
+                         construction="moves" if s.construction == "moves" else "ants",
+                         construction_fallback={"scan": "lazy", "moves": "auto"}.get(
+                             s.construction, s.construction))
     params = params_from(strategy, problem, s.params)
     # time alone: the sparse path's iterations take seconds, so the clock is read after each
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)

@@ -70,6 +70,7 @@ from eaco_jax.ops.construction import (
     heuristic_log_eta,
     tour_lengths,
 )
+from eaco_jax.ops.construction_moves import construct_tours_moves
 from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
 from eaco_jax.problems.tsp_sparse import is_sparse
@@ -95,6 +96,8 @@ LOCAL_SEARCHES = ("2opt", "or-2opt", "2opt-dlb", "2opt+oropt", "none")
 PRESETS = ("default", "mmas", "paper")
 CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
+#: how ants build tours on the sparse path (GraphEACO.construction)
+CONSTRUCTIONS = ("ants", "moves")
 
 
 @struct.dataclass
@@ -247,6 +250,10 @@ class GraphEACO(Strategy):
     #: sparse problems: Focused ACO's construction, each ant adds at most this many edges
     #: that are not in the best tour so far, then follows it (None: full construction)
     max_new_edges: int | None = None
+    #: sparse problems, how the ants build: "ants" (city by city, ``construction_sparse``) or
+    #: "moves" (the best tour so far changed by ``max_new_edges`` 2-opt moves each,
+    #: ``construction_moves``: a loop over the moves, not over the n cities)
+    construction: str = "ants"
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -266,6 +273,12 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_neighbors must be >= 1 or None, got {self.ls_neighbors}")
         if self.max_new_edges is not None and self.max_new_edges < 1:
             raise ConfigError(f"max_new_edges must be >= 1 or None, got {self.max_new_edges}")
+        if self.construction not in CONSTRUCTIONS:
+            raise ConfigError(f"construction={self.construction!r} is not one of "
+                              f"{CONSTRUCTIONS}")
+        if self.construction == "moves" and self.max_new_edges is None:
+            raise ConfigError("construction='moves' applies max_new_edges 2-opt moves per "
+                              "ant: give --max-new-edges N (max_new_edges=N)")
         if self.ls_moves_per_step < 1:
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         for name, value, allowed in (
@@ -351,6 +364,10 @@ class GraphEACO(Strategy):
                 raise ConfigError("candidate_lists=False needs a distance matrix; the sparse "
                                   "path builds tours on the candidate lists")
             return problem
+        if self.construction == "moves":
+            raise ConfigError("construction='moves' needs the sparse path (no distance "
+                              "matrix): pass --sparse on to eaco tsp, or sparse=True to "
+                              "load_tsplib")
         if self.max_new_edges is not None:
             raise ConfigError("max_new_edges (focused construction) needs the sparse path "
                               "(no distance matrix): pass --sparse on to eaco tsp, or "
@@ -467,6 +484,10 @@ class GraphEACO(Strategy):
             if sparse:  # the fallback follows the best tour so far (the first tour before)
                 ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
                                 state.first_tour)
+                if self.construction == "moves":
+                    return construct_tours_moves(k_build, stacked, problem.neighbors, ref,
+                                                 self.max_new_edges, m + 1, q0, offset,
+                                                 chaos_factor)
                 return construct_tours_sparse(k_build, stacked, problem.neighbors, starts, ref,
                                               q0, offset, chaos_factor, self.max_new_edges,
                                               self._sparse_plan())

@@ -1,0 +1,109 @@
+"""Focused construction as moves: each ant is the reference tour changed by a few 2-opt moves.
+
+Focused ACO's ant copies the reference (best) tour except for a bounded number of new edges,
+yet :func:`eaco_jax.ops.construction_sparse.construct_tours_sparse` still walks all n
+positions one step at a time. Here an ant starts from the reference tour and applies
+``n_moves`` 2-opt moves; each inserts one chosen edge (c, v), v drawn from c's candidate list
+by the colony's rule (Eq. 2 on the choice weights, the q0 greedy rule), and reverses the
+segment between them so the tour stays a permutation (the move also creates the edge between
+the two cities that lost c and v). A draw of a city that is already c's tour neighbour changes
+nothing, as an ant following a reference edge adds no new edge: once the trails favour the
+reference tour most moves are such no-ops.
+
+Sequential depth is ``n_moves`` (a ``fori_loop``), never n: one move is a gather and a select
+over each ant's (n,) tour and position arrays, wide and cheap on a GPU.
+
+Where c comes from (``walk``): with ``walk=True`` the ant walks like a constructing ant, c of a
+move is the v of the previous one (the first c uniform), and the move removes the edge of c
+that it did not arrive by, so the moves chain into one connected change (as the steps of
+Lin-Kernighan do); a single 2-opt move at a random place is what a 2-opt local search undoes
+first, a chain is not. ``walk=False``: every c uniform, each move on a random side of c.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from eaco_jax.ops.construction import _sample
+
+Array = jax.Array
+
+
+def construct_tours_moves(
+    key: Array,
+    cand_w: Array,
+    candidates: Array,
+    ref_tour: Array,
+    n_moves: int,
+    num_ants: int,
+    q0: Array | float = 0.0,
+    row_offset: Array | None = None,
+    factor: Array | None = None,
+    walk: bool = True,
+) -> Array:
+    """One tour per ant: ``ref_tour`` after ``n_moves`` 2-opt moves (module docstring).
+
+    Args:
+      key: PRNG key.
+      cand_w: (R, k) non-negative choice weights of the candidates (R = n, or stacked
+        multiples of n: ant a at city c reads row ``row_offset[a] + c``).
+      candidates: (n, k) int32 candidate lists.
+      ref_tour: (n,) the tour every ant starts from.
+      n_moves: moves per ant (a Python int; 0 returns the reference tour).
+      num_ants: m.
+      q0: probability of the greedy choice, scalar or (m,).
+      row_offset: (m,) multiples of n (default 0).
+      factor: optional (m, n) multiplicative perturbation of the weights (chaos).
+      walk: chain the moves (c = the previous move's v) instead of a uniform c per move.
+
+    Returns:
+      (m, n) int32 tours (each a permutation; the start city is not fixed).
+    """
+    n, k = candidates.shape
+    m = int(num_ants)
+    if cand_w.shape[0] % n or cand_w.shape[1] != k:
+        raise ValueError(f"cand_w must be (multiple of {n}, {k}), got {cand_w.shape}")
+    if n_moves < 0:
+        raise ValueError(f"n_moves must be >= 0, got {n_moves}")
+    ref = jnp.asarray(ref_tour, jnp.int32)
+    cands = jnp.asarray(candidates, jnp.int32)
+    row_offset = (jnp.zeros((m,), jnp.int32) if row_offset is None
+                  else jnp.asarray(row_offset, jnp.int32))
+    q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
+    tour = jnp.broadcast_to(ref, (m, n))
+    pos = jnp.broadcast_to(jnp.zeros(n, jnp.int32).at[ref].set(jnp.arange(n, dtype=jnp.int32)),
+                           (m, n))
+    if n_moves == 0:
+        return tour
+    every = jnp.arange(m, dtype=jnp.int32)
+    places = jnp.arange(n, dtype=jnp.int32)[None, :]
+
+    def move(t, carry):
+        tour, pos, cur, came = carry
+        # move t's draws from its own key: the first t moves do not depend on n_moves
+        k_city, k_pick, k_side = jax.random.split(jax.random.fold_in(key, t), 3)
+        start = jax.random.randint(k_city, (m,), 0, n, jnp.int32)
+        side = jax.random.bernoulli(k_side, 0.5, (m,))
+        c = start if not walk else jnp.where(t == 0, start, cur)
+        cand = cands[c]  # (m, k)
+        w = cand_w[row_offset + c]
+        w = w if factor is None else w * factor[every[:, None], cand]
+        idx, ok = _sample(w, jax.random.uniform(k_pick, (m,)), q0)
+        v = jnp.where(ok, cand[every, idx], c)  # no positive weight: no move
+        i, j = pos[every, c], pos[every, v]
+        pred_c = tour[every, (i - 1) % n]
+        # the side of c whose edge goes: walking, not the edge the ant arrived by
+        after = side if not walk else jnp.where(t == 0, side, came == pred_c)
+        lo = jnp.minimum(i, j) + after.astype(jnp.int32)
+        hi = jnp.maximum(i, j) - (~after).astype(jnp.int32)
+        inside = (places >= lo[:, None]) & (places <= hi[:, None])
+        mirror = (lo + hi)[:, None]
+        tour = jnp.take_along_axis(tour, jnp.where(inside, mirror - places, places), axis=1)
+        moved = (pos >= lo[:, None]) & (pos <= hi[:, None])
+        pos = jnp.where(moved, mirror - pos, pos)
+        return tour, pos, v, c
+
+    carry = (tour, pos, jnp.zeros((m,), jnp.int32), jnp.full((m,), -1, jnp.int32))
+    tour, _, _, _ = jax.lax.fori_loop(0, n_moves, move, carry)
+    return tour

@@ -1,0 +1,143 @@
+"""Focused construction as 2-opt moves on the reference tour (ops/construction_moves.py)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from eaco_jax.errors import ConfigError
+from eaco_jax.ops.construction_moves import construct_tours_moves
+from eaco_jax.problems.tsp_sparse import SparseTSP
+from eaco_jax.strategies.graph_eaco import GraphEACO
+
+N, K, M = 60, 6, 12
+
+
+def _setup(seed: int = 0):
+    rng = np.random.default_rng(seed)
+    p = SparseTSP.from_coords(rng.integers(0, 10_000, (N, 2)), neighbors=K)
+    ref = rng.permutation(N).astype(np.int32)
+    cand_w = rng.uniform(0.1, 1.0, (N, K)).astype(np.float32)
+    return p, ref, cand_w
+
+
+def _edges(t) -> set[frozenset]:
+    return {frozenset((int(a), int(b))) for a, b in zip(t, np.roll(t, -1), strict=True)}
+
+
+def _build(ref, cand_w, cands, n_moves, walk=True, key=0, q0=0.0, **kw):
+    return np.asarray(construct_tours_moves(jax.random.key(key), jnp.asarray(cand_w),
+                                            jnp.asarray(cands), jnp.asarray(ref), n_moves, M,
+                                            q0, walk=walk, **kw))
+
+
+@pytest.mark.parametrize("walk", [True, False])
+def test_tours_are_permutations_within_two_edges_per_move_of_the_reference(walk):
+    p, ref, cand_w = _setup()
+    factor = np.random.default_rng(3).uniform(0.9, 1.1, (M, N)).astype(np.float32)
+    for n_moves in (1, 3, 10):
+        tours = _build(ref, cand_w, p.neighbors, n_moves, walk, factor=jnp.asarray(factor))
+        assert tours.shape == (M, N) and tours.dtype == np.int32
+        changed = []
+        for t in tours:
+            assert sorted(t) == list(range(N))
+            new = len(_edges(t) - _edges(ref))
+            assert new <= 2 * n_moves
+            changed.append(new)
+        assert max(changed) > 0  # the moves do change tours
+    np.testing.assert_array_equal(_build(ref, cand_w, p.neighbors, 0, walk),
+                                  np.broadcast_to(ref, (M, N)))
+
+
+@pytest.mark.parametrize("walk", [True, False])
+def test_each_move_inserts_a_candidate_edge_and_its_closing_edge(walk):
+    """Move t+1 of an ant (the tours after t and t + 1 moves: the draws of the first t
+    moves do not depend on n_moves) removes two edges and adds (c, v), v one of c's
+    candidates, or changes nothing."""
+    p, ref, cand_w = _setup(1)
+    cands = np.asarray(p.neighbors)
+    applied = 0
+    before = _build(ref, cand_w, cands, 0, walk)
+    for n_moves in range(1, 7):
+        after = _build(ref, cand_w, cands, n_moves, walk)
+        for a, b in zip(before, after, strict=True):
+            added, removed = _edges(b) - _edges(a), _edges(a) - _edges(b)
+            assert len(added) == len(removed) in (0, 2)
+            if added:
+                applied += 1
+                assert any(y in cands[x] for e in added for x, y in (tuple(e), tuple(e)[::-1]))
+        before = after
+    assert applied > 20
+
+
+@pytest.mark.parametrize("walk", [True, False])
+def test_same_key_same_tours_other_key_other_tours(walk):
+    p, ref, cand_w = _setup(2)
+    a = _build(ref, cand_w, p.neighbors, 5, walk, key=4)
+    np.testing.assert_array_equal(a, _build(ref, cand_w, p.neighbors, 5, walk, key=4))
+    assert not np.array_equal(a, _build(ref, cand_w, p.neighbors, 5, walk, key=5))
+    assert len({tuple(t) for t in a}) > 1  # ants draw apart
+
+
+@pytest.mark.parametrize("walk", [True, False])
+def test_greedy_limit_inserts_the_predicted_edge(walk):
+    """One nonzero weight per row, or q0 = 1: the move from c inserts (c, its best candidate)."""
+    p, ref, cand_w = _setup(3)
+    cands = np.asarray(p.neighbors)
+    rng = np.random.default_rng(5)
+    col = rng.integers(0, K, N)
+    one_hot = np.zeros((N, K), np.float32)
+    one_hot[np.arange(N), col] = 1.0
+    best = cand_w.argmax(axis=1)
+    for w, q0, pick in ((one_hot, 0.0, col), (cand_w, 1.0, best)):
+        tours = _build(ref, w, cands, 1, walk, q0=q0)
+        hits = 0
+        for t in tours:
+            added = _edges(t) - _edges(ref)
+            if added:
+                hits += 1
+                assert any(y == cands[x, pick[x]] for e in added
+                           for x, y in (tuple(e), tuple(e)[::-1]))
+        assert hits > M // 2
+
+
+def test_walk_chains_the_moves():
+    """walk=True: the second move starts at the first move's v and keeps the edge (c, v)."""
+    p, ref, cand_w = _setup(4)
+    chained = 0
+    for a, b in zip(_build(ref, cand_w, p.neighbors, 1), _build(ref, cand_w, p.neighbors, 2),
+                    strict=True):
+        first, second = _edges(a) - _edges(ref), _edges(b) - _edges(a)
+        if first and second:
+            # the second move is at a city of a first-move edge (v of (c, v)), which stays
+            assert any(e in _edges(b) and e & set().union(*second) for e in first)
+            chained += 1
+    assert chained > M // 3
+
+
+def test_strategy_moves_runs_on_the_sparse_path_and_is_refused_on_the_dense_one():
+    import eaco_jax as ea
+    from eaco_jax.problems import load_tsplib
+
+    rng = np.random.default_rng(7)
+    p = SparseTSP.from_coords(rng.integers(0, 100_000, (150, 2)), neighbors=8)
+    s = GraphEACO(num_ants=6, local_search="2opt+oropt", preset="mmas", construction="moves",
+                  max_new_edges=4)
+    res = ea.minimize(p, s, seed=0, iterations=3)
+    assert sorted(np.asarray(res.best_solution).tolist()) == list(range(150))
+    # one move per ant, nothing after it: each ant's tour is the first tour but two edges
+    one = GraphEACO(num_ants=6, local_search="none", preset="mmas", construction="moves",
+                    max_new_edges=1, seed_tour=False)
+    state = one.init(jax.random.key(1), p)
+    tours, _ = one.ask(jax.random.key(2), state, p)
+    first = _edges(np.asarray(state.first_tour))
+    assert {len(_edges(t) - first) for t in np.asarray(tours)} <= {0, 2}
+    with pytest.raises(ConfigError, match="construction='moves' needs the sparse path.*"
+                       "--sparse on"):
+        ea.minimize(load_tsplib("eil51"), s, seed=0, iterations=1)
+    with pytest.raises(ConfigError, match="--max-new-edges N"):
+        GraphEACO(construction="moves")
+    with pytest.raises(ConfigError, match="not one of"):
+        GraphEACO(construction="walk")
