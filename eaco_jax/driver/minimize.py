@@ -130,6 +130,7 @@ def minimize(
     max_seconds: float | None = None,
     callback: Callable[[Any, Progress], Any] | None = None,
     stop: StopRule | Sequence[StopRule] | None = None,
+    deadline: float | None = None,
     chunk_size: int | None = None,
     progress: bool = False,
     checkpointing: Checkpointing | None = None,
@@ -153,6 +154,11 @@ def minimize(
         chunk (see :mod:`eaco_jax.driver.stop`): every row's best <= target; every row
         stagnated ``patience`` iterations; compute seconds (compilation excluded);
         ``callback(state, progress)`` returned True; any further ``rule(state, progress)``.
+      deadline: a ``time.monotonic()`` value: the run ends once the wall clock reaches it,
+        checked before every chunk as well as after (stop reason ``"deadline"``, or
+        ``"deadline_in_setup"`` when it passed before the first iteration: the result is
+        then the initial state's best). A budget counted from the caller's start:
+        ``deadline=started + seconds``.
       chunk_size: iterations per compiled call (default: about 20 chunks per run).
       progress: show a progress bar (tqdm).
       checkpointing: save (and resume) the run, see :class:`Checkpointing`.
@@ -176,7 +182,7 @@ def minimize(
         chunk = default_chunk(total, chunk_size)
         n_settings = len(params) if isinstance(params, list | tuple) else 1
         rows = len(seeds) * n_settings
-        rules = stop_rules(target, patience, max_seconds, callback, stop)
+        rules = stop_rules(target, patience, max_seconds, callback, stop, deadline)
         if params is None:
             params = strategy.default_params(problem)
         check_state_memory(strategy, problem, rows, params)
@@ -290,7 +296,8 @@ def run(
                           exhausted=lambda s: exhausted(strategy, problem, s, max_evaluations))
     try:
         with signals:
-            while (reason := stopping.before_chunk(state, done)) is None:
+            while (reason := stopping.before_chunk(
+                    state, done, Progress(done, run_seconds, compile_seconds))) is None:
                 length = min(chunk, total - done)
                 if every:  # saves land on multiples of checkpoint_every
                     length = min(length, every - done % every)
@@ -301,7 +308,10 @@ def run(
                 except CompileInterrupted:
                     continue  # the stop reason sees the signal
                 compile_seconds += seconds
-                if signals():
+                # a deadline may pass while compiling (not cut short: an abandoned compiler
+                # thread can crash the interpreter's exit)
+                now = Progress(done, run_seconds, compile_seconds)
+                if signals() or (seconds > 0 and stopping.before_chunk(state, done, now)):
                     continue
                 t0 = time.perf_counter()
                 args = (problem, state, jnp.int32(length)) + ((budget,) if capped else ())

@@ -5,13 +5,16 @@ the colony state (with a leading row axis when several seeds or settings run at 
 ``progress`` a :class:`Progress` record. The iteration budget is not a rule: it fixes the
 length of the compiled run and is given to :func:`~eaco_jax.driver.minimize.minimize` as
 ``iterations`` (or ``max_evaluations``). Rules stop *after* the chunk in which they fire;
-``chunk_size`` sets how often they are checked.
+``chunk_size`` sets how often they are checked. A rule with ``before_chunk = True`` (a
+deadline) is also checked before every chunk and after each compilation, so that a deadline
+that passed during setup ends the run before its first iteration.
 
 Built in (also reachable through ``minimize``'s keywords of the same meaning)::
 
     Target(value)            every row's best cost <= value        (target=)
     Patience(iterations)     every row stagnated this long         (patience=)
     WallTime(seconds)        compute seconds since the start       (max_seconds=)
+    Deadline(at)             time.monotonic() reached ``at``       (deadline=)
     Evaluations(n)           every row charged >= n evaluations
     Callback(fn)             fn(state, progress) returned True     (callback=)
 """
@@ -19,6 +22,9 @@ Built in (also reachable through ``minimize``'s keywords of the same meaning)::
 from __future__ import annotations
 
 import dataclasses
+import math
+import os
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -33,11 +39,13 @@ class Progress:
       iterations: iterations completed (a resumed run counts those before the restart).
       seconds: compute seconds of this process's run so far, compilation excluded.
       compile_seconds: seconds spent compiling so far.
+      now: ``time.monotonic()`` when the progress was taken (default: at construction).
     """
 
     iterations: int
     seconds: float
     compile_seconds: float
+    now: float = dataclasses.field(default_factory=time.monotonic)
 
 
 StopRule = Callable[[Any, Progress], bool]
@@ -80,6 +88,36 @@ class WallTime:
 
     def __call__(self, state: Any, progress: Progress) -> bool:
         return progress.seconds >= self.seconds
+
+
+@dataclasses.dataclass(frozen=True)
+class Deadline:
+    """Stop once the wall clock (``time.monotonic()``) reaches ``at``: a budget counted from
+    a moment the caller chose (e.g. the program's start, see :func:`process_started_at`), so
+    reading the data, compilation and the first tour count against it. Checked before every
+    chunk too (``before_chunk``): a deadline that passed during setup runs no iteration."""
+
+    at: float
+    before_chunk = True
+
+    def __call__(self, state: Any, progress: Progress) -> bool:
+        return progress.now >= self.at
+
+
+def process_started_at() -> float | None:
+    """When this process started, on the ``time.monotonic()`` clock (None where the operating
+    system does not say): the start of the ``eaco`` command's call, interpreter start-up and
+    imports included. Linux only, to 1/100 s (``/proc/self/stat`` field 22)."""
+    try:
+        with open("/proc/self/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        ticks = int(fields[19])  # field 22 of the whole line: start time, clock ticks
+        hz = os.sysconf("SC_CLK_TCK")  # the kernel's clock ticks per second
+        boot_now = time.clock_gettime(time.CLOCK_BOOTTIME)
+    except (OSError, IndexError, ValueError, AttributeError):
+        return None
+    age = boot_now - ticks / hz
+    return time.monotonic() - age if math.isfinite(age) and age >= 0 else None
 
 
 @dataclasses.dataclass(frozen=True)

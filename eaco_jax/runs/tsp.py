@@ -6,12 +6,15 @@ Outputs in ``out``: ``result.json``, ``history.csv``, ``convergence.png`` and ``
 from __future__ import annotations
 
 import dataclasses
+import math
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from eaco_jax.errors import ConfigError
 from eaco_jax.runs.base import (
     Built,
     RunKind,
@@ -158,20 +161,22 @@ class TspSettings:
                           choices=("auto", "default", "mmas", "paper"))
     max_evaluations: int | None = setting(None, "evaluation budget (a hard cap; replaces "
                                           "--iterations)")
-    max_seconds: float | None = setting(None, "stop after this many compute seconds")
+    max_seconds: float | None = setting(None, "time budget in seconds, counted on --clock")
+    clock: str = setting("run", "what --max-seconds counts: run (the search loop's compute, "
+                         "compilation, reading and the first tour excluded), call (wall time "
+                         "from the command's start: start-up, reading, candidate lists, "
+                         "compilation and the first tour included)", choices=("run", "call"))
     sparse: str = setting("auto", "distance matrix or not: on (coordinates, candidate lists "
                           "and trails on candidate edges only, memory O(n k)), off (n x n "
                           "matrices), auto (on from 8,000 cities for EUC_2D, CEIL_2D, ATT)",
                           choices=("auto", "on", "off"))
     neighbors: int | None = setting(None, "candidate-list length per city (default 20 with a "
                                     "distance matrix, 16 without)")
-    construction: str = setting("auto", "how tours are built: kernel (one Pallas kernel per "
-                                "block of ants; compiled on a GPU), scan (a batched step per "
-                                "tour position), both the same tours; auto: the dense path's "
-                                "measured plan, the sparse path's scan; moves (sparse path, "
-                                "with --max-new-edges N: each ant is the best tour changed by "
-                                "N 2-opt moves, a loop over the moves, not the cities)",
-                                choices=("auto", "kernel", "scan", "moves"))
+    construction: str = setting("auto", "how tours are built (the same tours either way): "
+                                "kernel (one Pallas kernel per block of ants; compiled on a "
+                                "GPU), scan (a batched step per tour position); auto: the "
+                                "dense path's measured plan; the sparse path's scan",
+                                choices=("auto", "kernel", "scan"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
                                         "tour, then follows it (default: full construction)")
@@ -181,6 +186,9 @@ class TspSettings:
     def __post_init__(self) -> None:
         check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
                        "ls_neighbors", "neighbors", "max_new_edges")
+        if self.clock == "call" and self.max_seconds is None:
+            raise ConfigError("clock='call' counts the --max-seconds budget from the call; "
+                              "give --max-seconds S (or leave --clock run)")
 
 
 def colony_defaults(n: int, backend: str, seconds: float | None = None) -> ColonyDefaults:
@@ -220,9 +228,8 @@ def build(s: TspSettings) -> Built:
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges,
-                         construction="moves" if s.construction == "moves" else "ants",
-                         construction_fallback={"scan": "lazy", "moves": "auto"}.get(
-                             s.construction, s.construction))
+                         construction_fallback={"scan": "lazy"}.get(s.construction,
+                                                                     s.construction))
     params = params_from(strategy, problem, s.params)
     # time alone: the sparse path's iterations take seconds, so the clock is read after each
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)
@@ -253,17 +260,48 @@ def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
             "success": bool(cost <= float(optimum))}
 
 
-def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) -> dict[str, Any]:
-    """Solve the instance; returns the JSON record and writes ``s.out`` if set."""
+def call_start(started_at: float | None, entered_at: float) -> tuple[float, str]:
+    """Where "the call" began on the ``time.monotonic()`` clock, and its name: the caller's
+    ``started_at``, else this process's start (the ``eaco`` command: interpreter start-up and
+    imports included), else ``entered_at`` where the system does not tell the process start."""
+    from eaco_jax.driver.stop import process_started_at
+
+    if started_at is not None:
+        if isinstance(started_at, bool) or not isinstance(started_at, int | float) \
+                or not math.isfinite(started_at) or started_at > entered_at:
+            raise ConfigError("started_at must be a time.monotonic() value taken before the "
+                              f"call (e.g. started_at=time.monotonic()), got {started_at!r}")
+        return float(started_at), "started_at"
+    process = process_started_at()
+    if process is not None and process <= entered_at:
+        return process, "process start"
+    return entered_at, "run() entry"
+
+
+def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None,
+        started_at: float | None = None) -> dict[str, Any]:
+    """Solve the instance; returns the JSON record and writes ``s.out`` if set.
+
+    ``started_at`` (a ``time.monotonic()`` value): where the call began, which
+    ``clock="call"`` counts ``max_seconds`` from and ``timing.total_seconds`` measures from;
+    default this process's start (right for the ``eaco`` command and one run per process;
+    in a long-lived session pass ``started_at=time.monotonic()`` at the call).
+    """
+    entered_at = time.monotonic()
     from eaco_jax.driver.minimize import minimize
     from eaco_jax.problems.tsp_sparse import is_sparse
 
+    origin, origin_name = call_start(started_at, entered_at)
     check_out(s.out)
     built = build(s)
     checkpointing = with_resolved_settings(checkpointing, built)
+    budget = dict(built.budget)
+    if s.clock == "call":  # the deadline replaces the loop's compute-time rule
+        budget["deadline"] = origin + float(budget.pop("max_seconds"))
     with entered(built):
         result = minimize(built.problem, built.strategy, seed=int(s.seed), progress=progress,
-                          checkpointing=checkpointing, params=built.params, **built.budget)
+                          checkpointing=checkpointing, params=built.params, **budget)
+    ended_at = time.monotonic()
     problem = built.problem
     tour = np.asarray(result.best_solution, dtype=np.int64)
     length = int(problem.exact_length(tour))
@@ -288,17 +326,34 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None) ->
         "seconds": float(result.seconds),
         "compile_seconds": float(result.compile_seconds),
         "seconds_per_iteration": float(result.seconds_per_iteration),
+        "timing": timing(s, result, origin, origin_name, entered_at, ended_at),
         "sparse": is_sparse(problem),
         "neighbors": int(problem.neighbors.shape[1]),
         "tours_per_second": tours / float(result.seconds) if result.seconds > 0 else None,
         **peak_memory(),
-        "history_best": np.asarray(result.history["best_cost"]).tolist(),
+        "history_best": np.asarray(result.history.get("best_cost", [])).tolist(),
     }
     if problem.optimum is not None:
         record["gap_percent"] = 100.0 * (length / float(problem.optimum) - 1.0)
     if s.out is not None:
         write_outputs(Path(s.out), record, result.history, s.instance)
     return record
+
+
+def timing(s: TspSettings, result: Any, origin: float, origin_name: str, entered_at: float,
+           ended_at: float) -> dict[str, Any]:
+    """Where the wall time went, from the call (``origin``) to the end of the search: start-up
+    (the call to :func:`run`: interpreter and imports for the command), compilation, the
+    search loop's compute, and setup (the rest: reading the instance, candidate lists, the
+    first tour, the host's work between chunks); with the clock and budget the run used."""
+    total = ended_at - origin
+    compile_s = float(result.compile_seconds)
+    loop = float(result.seconds) - compile_s
+    startup = entered_at - origin
+    return {"clock": s.clock, "from": origin_name, "budget_seconds": s.max_seconds,
+            "startup_seconds": startup, "setup_seconds": max(total - startup - compile_s - loop,
+                                                             0.0),
+            "compile_seconds": compile_s, "loop_seconds": loop, "total_seconds": total}
 
 
 def peak_memory() -> dict[str, int | None]:
@@ -357,6 +412,9 @@ def summary(record: dict[str, Any]) -> str:
     return (f"{record['instance']}: best length {record['best_length']}"
             + (f" (optimum {record['optimum']:g}, gap {gap:.2f}%)" if gap is not None else "")
             + f" in {record['iterations']} iterations, {record['seconds']:.1f} s"
+            + (f" ({t['total_seconds']:.1f} s from the call, budget {t['budget_seconds']:g} s"
+               f" on the {t['clock']} clock)"
+               if (t := record.get("timing")) and t.get("budget_seconds") is not None else "")
             + (f", stopped by {record['stop_reason']}" if record.get("stop_reason") else "")
             + (f"; {record['tours_per_second']:,.0f} tours/s"
                if record.get("tours_per_second") else "")
