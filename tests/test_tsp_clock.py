@@ -23,6 +23,8 @@ from eaco_jax.runs.tsp import TspSettings, build, run
 #: a small colony on eil51: compiles in a few seconds on a CPU
 SMALL = dict(instance="eil51", ants=8, local_search="none", crossover="none",
              mutation="none", seed=3)
+#: the same on the sparse path, whose colony starts from a first tour (2-opt on the Hilbert order)
+SPARSE = {**SMALL, "sparse": "on", "local_search": "2opt"}
 TIMING = ("clock", "from", "budget_seconds", "startup_seconds", "setup_seconds",
           "compile_seconds", "loop_seconds", "total_seconds")
 
@@ -52,22 +54,25 @@ def test_a_passed_deadline_returns_the_first_tour():
     """The call began 60 s ago (a deterministic stand-in for a slow setup): the run ends
     before its first iteration with the initial state's best tour, while the same budget on
     the run clock searches."""
-    s = TspSettings(**SMALL, max_seconds=1.0, clock="call")
+    s = TspSettings(**SPARSE, max_seconds=1.0, clock="call")
     rec = run(s, started_at=time.monotonic() - 60.0)
     assert rec["stop_reason"] == "deadline_in_setup"
     assert rec["iterations"] == 0 and rec["history_best"] == []
     built = build(s)
     first = initial_state(built.strategy, built.problem, [s.seed], built.params)
-    assert rec["tour"] == np.asarray(first.best_solution).reshape(-1).tolist()
+    assert rec["tour_from"] == "first tour"  # the Hilbert order after local search
+    assert rec["tour"] == np.asarray(first.first_tour).reshape(-1).tolist()
     assert rec["best_length"] == int(built.problem.exact_length(np.asarray(rec["tour"])))
+    assert rec["best_length"] < built.problem.exact_length(np.arange(built.problem.n))
     t = rec["timing"]
     assert tuple(t) == TIMING
     assert t["clock"] == "call" and t["from"] == "started_at" and t["budget_seconds"] == 1.0
     assert t["loop_seconds"] == 0.0 and t["startup_seconds"] >= 60.0
     assert t["total_seconds"] >= 60.0
 
-    on_run = run(TspSettings(**SMALL, max_seconds=1.0), started_at=time.monotonic() - 60.0)
+    on_run = run(TspSettings(**SPARSE, max_seconds=1.0), started_at=time.monotonic() - 60.0)
     assert on_run["stop_reason"] == "max_seconds" and on_run["iterations"] > 0
+    assert on_run["tour_from"] == "search"
     assert on_run["best_length"] <= rec["best_length"]
     r = on_run["timing"]
     assert r["clock"] == "run" and r["loop_seconds"] >= 1.0 and r["total_seconds"] >= 61.0
@@ -78,10 +83,19 @@ def test_a_passed_deadline_returns_the_first_tour():
 
     # the chunk is compiled now: a budget from the call that outlasts the setup searches
     t0 = time.monotonic()
-    live = run(TspSettings(**SMALL, max_seconds=1.5, clock="call"), started_at=t0)
+    live = run(TspSettings(**SPARSE, max_seconds=1.5, clock="call"), started_at=t0)
     assert live["stop_reason"] == "deadline" and live["iterations"] > 0
     assert live["timing"]["total_seconds"] >= 1.5
     assert time.monotonic() - t0 >= 1.5
+
+
+def test_the_dense_path_returns_file_order_when_no_iteration_ran():
+    """The dense path has no tour before its first iteration: the record says the returned
+    order is the file's, not a search result."""
+    rec = run(TspSettings(**SMALL, max_seconds=1.0, clock="call"),
+              started_at=time.monotonic() - 60.0)
+    assert rec["stop_reason"] == "deadline_in_setup" and rec["tour_from"] == "file order"
+    assert rec["tour"] == list(range(51))
 
 
 def test_minimize_deadline_keyword():

@@ -172,11 +172,13 @@ class TspSettings:
                           choices=("auto", "on", "off"))
     neighbors: int | None = setting(None, "candidate-list length per city (default 20 with a "
                                     "distance matrix, 16 without)")
-    construction: str = setting("auto", "how tours are built (the same tours either way): "
-                                "kernel (one Pallas kernel per block of ants; compiled on a "
-                                "GPU), scan (a batched step per tour position); auto: the "
-                                "dense path's measured plan; the sparse path's scan",
-                                choices=("auto", "kernel", "scan"))
+    construction: str = setting("auto", "how tours are built: kernel (one Pallas kernel per "
+                                "block of ants; compiled on a GPU), scan (a batched step per "
+                                "tour position), both the same tours; auto: the dense path's "
+                                "measured plan, the sparse path's scan; moves (sparse path, "
+                                "with --max-new-edges N: each ant is the best tour changed by "
+                                "N 2-opt moves, a loop over the moves, not the cities)",
+                                choices=("auto", "kernel", "scan", "moves"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
                                         "tour, then follows it (default: full construction)")
@@ -228,8 +230,9 @@ def build(s: TspSettings) -> Built:
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges,
-                         construction_fallback={"scan": "lazy"}.get(s.construction,
-                                                                     s.construction))
+                         construction="moves" if s.construction == "moves" else "ants",
+                         construction_fallback={"scan": "lazy", "moves": "auto"}.get(
+                             s.construction, s.construction))
     params = params_from(strategy, problem, s.params)
     # time alone: the sparse path's iterations take seconds, so the clock is read after each
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)
@@ -303,7 +306,7 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None,
                           checkpointing=checkpointing, params=built.params, **budget)
     ended_at = time.monotonic()
     problem = built.problem
-    tour = np.asarray(result.best_solution, dtype=np.int64)
+    tour, tour_from = returned_tour(result)
     length = int(problem.exact_length(tour))
     rows = int(np.asarray(result.best_cost).size)
     tours = int(built.strategy.num_ants) * int(result.iterations) * rows
@@ -317,6 +320,7 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None,
         "ls_neighbors": built.strategy.ls_neighbors,
         "preset": built.strategy.preset,
         "best_length": length,
+        "tour_from": tour_from,
         "optimum": problem.optimum,
         "tour": tour.tolist(),
         "iterations": int(result.iterations),
@@ -338,6 +342,20 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None,
     if s.out is not None:
         write_outputs(Path(s.out), record, result.history, s.instance)
     return record
+
+
+def returned_tour(result: Any) -> tuple[np.ndarray, str]:
+    """The tour a run returns and where it came from: the search's best ("search"); where no
+    iteration ran (a deadline that passed in setup), the colony's first tour ("first tour":
+    the sparse path's Hilbert order after local search), else the cities in file order
+    ("file order": the dense path has no tour before its first iteration)."""
+    best = np.asarray(result.best_solution, dtype=np.int64)
+    if np.all(np.isfinite(np.asarray(result.state.best_cost))):  # the colony's, not the
+        return best, "search"  # host's re-check (which also measures the placeholder order)
+    first = getattr(result.state, "first_tour", None)
+    if first is not None:
+        return np.asarray(first, dtype=np.int64).reshape(best.shape), "first tour"
+    return best, "file order"
 
 
 def timing(s: TspSettings, result: Any, origin: float, origin_name: str, entered_at: float,
