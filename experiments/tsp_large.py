@@ -4,17 +4,23 @@ Instances: random uniform EUC_2D instances (DyNACO's setting: integer coordinate
 [0, 10^6), one file per ``--instance-seeds`` seed and ``--sizes`` size, written to ``--work``),
 and the named TSPLIB instances of ``--instances`` (``d15112`` ships with the package; a path
 or a data folder's name works too: ``common.data_dirs``). Each (instance, run seed of
-``--seeds``) is one fresh ``python -m eaco_jax tsp FILE --max-seconds S --seed SEED`` process,
-its wall clock taken from the call (start-up and compilation included); ``--seconds`` gives S
-per size (one value, or one per size), ``--instance-seconds`` S of the named instances
-(75.9, Focused ACO's d15112 figure), ``--eaco-args`` extra flags for every run.
+``--seeds``) is one fresh ``python -m eaco_jax tsp FILE --max-seconds S --clock call --seed
+SEED`` process: S counts from the process's start (start-up, reading, candidate lists,
+compilation and the first tour included; ``--clock run``: the search loop's compute only, as
+before), so a gap is "in S seconds from the call". ``--seconds`` gives S per size (one value,
+or one per size), ``--instance-seconds`` S of the named instances (75.9, Focused ACO's d15112
+figure), ``--eaco-args`` extra flags for every run.
 
 Each row: the tour length; ``gap_percent`` against TSPLIB's optimum (named instances) or the
 LKH-3 tour run here (random instances with a reference in ``results/tsp_large/lkh``, written
 by ``lkh_reference.py``; ``--reference FILE.json`` replaces them), ``reference`` says which;
 for random instances also the length over the Beardwood-Halton-Hammersley estimate
 0.7124 sqrt(n A) of a random uniform optimum (an estimate, not a gap); tours/s, peak host
-memory (RSS) and device memory where the backend reports it (JAX's ``memory_stats``).
+memory (RSS) and device memory where the backend reports it (JAX's ``memory_stats``);
+``wall_seconds`` (this script's clock around the process, exit included), ``clock`` and
+``budget_seconds`` (the budget and what it counted), ``call_seconds`` (the run's own clock
+from its process start to the end of the search) and ``timing`` (start-up, setup,
+compilation and loop seconds of that).
 Instance seeds (which instances) and run seeds (which colony) are separate lists; nothing
 here chooses settings. ``--append`` adds the rows to an existing ``--out`` (one file from
 several calls), ``--process-timeout`` kills a run that overruns (recorded as an error).
@@ -95,25 +101,28 @@ def known_optimum(path: Path) -> float | None:
 
 
 def run_one(path: Path, seconds: float, seed: int, extra: list[str],
-            timeout: float | None = None) -> dict:
+            timeout: float | None = None, clock: str = "call") -> dict:
     """One fresh ``eaco tsp`` process: its record (without the tour) and the wall clock."""
     with tempfile.TemporaryDirectory() as tmp:
         argv = [sys.executable, "-m", "eaco_jax", "tsp", str(path), "--max-seconds",
-                str(seconds), "--seed", str(seed), "--out", tmp, *extra]
+                str(seconds), "--clock", clock, "--seed", str(seed), "--out", tmp, *extra]
         t0 = time.perf_counter()
         try:
             done = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
             return {"instance": path.stem, "seed": seed, "wall_seconds": timeout,
+                    "clock": clock, "budget_seconds": seconds,
                     "error": f"killed after --process-timeout {timeout} s"}
         wall = time.perf_counter() - t0
         if done.returncode:
             return {"instance": path.stem, "seed": seed, "error": done.stderr.strip()[-500:],
-                    "wall_seconds": wall}
+                    "wall_seconds": wall, "clock": clock, "budget_seconds": seconds}
         rec = json.loads((Path(tmp) / "result.json").read_text())
     rec.pop("tour", None)
     history = rec.pop("history_best", [])
+    timing = rec.get("timing") or {}
     return {**rec, "wall_seconds": wall, "budget_seconds": seconds,
+            "clock": timing.get("clock", "run"), "call_seconds": timing.get("total_seconds"),
             "history_points": len(history), "argv": argv[2:]}
 
 
@@ -179,6 +188,9 @@ def main(argv: list[str] | None = None) -> None:
                     help="JSON {instance: reference length}; default: the stored LKH-3 tours "
                          "of experiments/results/tsp_large/lkh")
     ap.add_argument("--eaco-args", default="", help="extra flags for every eaco tsp run")
+    ap.add_argument("--clock", choices=("call", "run"), default="call",
+                    help="what --max-seconds counts in each run: call (from the process's "
+                         "start, the targets' measure) or run (the search loop's compute)")
     ap.add_argument("--process-timeout", type=float, default=None,
                     help="kill a run after this many seconds (recorded as an error)")
     ap.add_argument("--append", action="store_true",
@@ -214,7 +226,8 @@ def main(argv: list[str] | None = None) -> None:
                         *(argv if argv is not None else sys.argv[1:])])
     for path, sec, n in jobs:
         for seed in args.seeds:
-            row = run_one(path, sec, seed, args.eaco_args.split(), args.process_timeout)
+            row = run_one(path, sec, seed, args.eaco_args.split(), args.process_timeout,
+                          args.clock)
             row = score(row, path, n or int(row.get("n", 0)), known_optimum(path), lkh)
             row["command"] = command
             rows.append(row)
@@ -222,6 +235,7 @@ def main(argv: list[str] | None = None) -> None:
                                             "reference", "over_bhh_percent",
                                             "tours_per_second", "peak_host_bytes",
                                             "peak_device_bytes", "wall_seconds",
+                                            "clock", "budget_seconds", "call_seconds",
                                             "stop_reason", "error")}
             print(json.dumps(show), flush=True)
     write_results(args.out, rows, date=datetime.date.today().isoformat(), command=command,
