@@ -61,6 +61,14 @@ def record(what: str, how: str, fn: Callable[[], object], *,
     print(f"- {what}: {text[:160]}")
 
 
+def _tsp_run_started_at(started_at: float) -> object:
+    """``eaco_jax.runs.tsp.run`` on burma14 with the call clock and ``started_at``."""
+    from eaco_jax.runs.tsp import TspSettings, run
+
+    return run(TspSettings("burma14", max_seconds=5.0, clock="call", iterations=2),
+               started_at=started_at)
+
+
 def multiobjective_rows() -> None:
     """The multi-objective mode: a user's own problem, the strategy, tell by hand."""
     from eaco_jax.problems import MultiObjectiveProblem
@@ -468,6 +476,16 @@ def main() -> None:
            test="tests/test_cli_gait.py::test_bad_input_is_a_one_line_error")
     record("`--max-seconds -1`", "CLI", lambda: cli("tsp", "burma14", "--max-seconds", "-1"),
            test="tests/test_bad_input_rows.py::test_command_line_refusals_are_one_line")
+    clock = "tests/test_tsp_clock.py::"
+    record("`eaco tsp --clock call` without `--max-seconds`", "CLI",
+           lambda: cli("tsp", "burma14", "--clock", "call"),
+           test=clock + "test_the_command_refuses_a_call_clock_without_budget_in_one_line")
+    record("`minimize(..., deadline=nan)`", "API",
+           lambda: ea.minimize(ea.problems.get("burma14"), iterations=2, deadline=float("nan")),
+           test=clock + "test_bad_deadlines_are_refused")
+    record("`runs.tsp.run(..., started_at=nan)` with `clock='call'`", "API",
+           lambda: _tsp_run_started_at(float("nan")),
+           test=clock + "test_bad_started_at_is_refused")
     record("`--max-evaluations 2` on tsp", "CLI",
            lambda: cli("tsp", "burma14", "--max-evaluations", "2"),
            test="tests/test_trust.py::test_budget_below_one_iteration_names_the_charge")
