@@ -6,9 +6,11 @@ positions one step at a time. Here an ant starts from the reference tour and app
 ``n_moves`` 2-opt moves; each inserts one chosen edge (c, v), v drawn from c's candidate list
 by the colony's rule (Eq. 2 on the choice weights, the q0 greedy rule), and reverses the
 segment between them so the tour stays a permutation (the move also creates the edge between
-the two cities that lost c and v). A draw of a city that is already c's tour neighbour changes
-nothing, as an ant following a reference edge adds no new edge: once the trails favour the
-reference tour most moves are such no-ops.
+the two cities that lost c and v). v is drawn among c's candidates that are not its tour
+neighbours (``skip_neighbours``), so every move changes the tour, as each of Focused ACO's ants
+adds its quota of new edges (its ant follows reference edges between them); drawing a tour
+neighbour would be a no-op, and once the trails favour the reference tour almost every draw
+would be one.
 
 Sequential depth is ``n_moves`` (a ``fori_loop``), never n: one move is a gather and a select
 over each ant's (n,) tour and position arrays, wide and cheap on a GPU.
@@ -30,6 +32,22 @@ from eaco_jax.ops.construction import _sample
 Array = jax.Array
 
 
+def _reverse(tour: Array, pos: Array, i: Array, d: Array, a: Array, b: Array
+             ) -> tuple[Array, Array]:
+    """Reverse, per ant, the cyclic stretch of positions ``i + d * a .. i + d * b`` (offsets
+    ``a <= b`` from position ``i`` in direction ``d = +-1``; empty if ``a > b``): ``tour``
+    (m, n) and its inverse ``pos``, elementwise."""
+    n = tour.shape[1]
+    i, d, a, b = i[:, None], d[:, None], a[:, None], b[:, None]
+
+    def mapped(p: Array) -> Array:
+        rel = (d * (p - i)) % n
+        return jnp.where((rel >= a) & (rel <= b), (i + d * (a + b - rel)) % n, p)
+
+    places = jnp.broadcast_to(jnp.arange(n, dtype=jnp.int32)[None, :], tour.shape)
+    return jnp.take_along_axis(tour, mapped(places), axis=1), mapped(pos)
+
+
 def construct_tours_moves(
     key: Array,
     cand_w: Array,
@@ -41,6 +59,9 @@ def construct_tours_moves(
     row_offset: Array | None = None,
     factor: Array | None = None,
     walk: bool = True,
+    skip_neighbours: bool = True,
+    kind: str = "2opt",
+    segment: int = 8,
 ) -> Array:
     """One tour per ant: ``ref_tour`` after ``n_moves`` 2-opt moves (module docstring).
 
@@ -56,6 +77,13 @@ def construct_tours_moves(
       row_offset: (m,) multiples of n (default 0).
       factor: optional (m, n) multiplicative perturbation of the weights (chaos).
       walk: chain the moves (c = the previous move's v) instead of a uniform c per move.
+      skip_neighbours: draw v among c's candidates that are not its tour neighbours now,
+        so every move changes the tour (False: such a draw is a no-op).
+      kind: "2opt" (the stretch from c's other neighbour to v reversed: two new edges) or
+        "or3opt" (v and up to ``segment`` - 1 cities after it move between c and its
+        neighbour: three new edges, a move that one 2-opt or Or-opt step does not undo).
+      segment: the longest segment an "or3opt" move carries (its length is uniform in
+        1..segment).
 
     Returns:
       (m, n) int32 tours (each a permutation; the start city is not fixed).
@@ -64,6 +92,8 @@ def construct_tours_moves(
     m = int(num_ants)
     if cand_w.shape[0] % n or cand_w.shape[1] != k:
         raise ValueError(f"cand_w must be (multiple of {n}, {k}), got {cand_w.shape}")
+    if kind not in ("2opt", "or3opt"):
+        raise ValueError(f"kind={kind!r} is not one of 2opt, or3opt")
     if n_moves < 0:
         raise ValueError(f"n_moves must be >= 0, got {n_moves}")
     ref = jnp.asarray(ref_tour, jnp.int32)
@@ -77,31 +107,41 @@ def construct_tours_moves(
     if n_moves == 0:
         return tour
     every = jnp.arange(m, dtype=jnp.int32)
-    places = jnp.arange(n, dtype=jnp.int32)[None, :]
 
     def move(t, carry):
         tour, pos, cur, came = carry
         # move t's draws from its own key: the first t moves do not depend on n_moves
-        k_city, k_pick, k_side = jax.random.split(jax.random.fold_in(key, t), 3)
+        k_city, k_pick, k_side, k_len = jax.random.split(jax.random.fold_in(key, t), 4)
         start = jax.random.randint(k_city, (m,), 0, n, jnp.int32)
         side = jax.random.bernoulli(k_side, 0.5, (m,))
         c = start if not walk else jnp.where(t == 0, start, cur)
         cand = cands[c]  # (m, k)
         w = cand_w[row_offset + c]
         w = w if factor is None else w * factor[every[:, None], cand]
+        i = pos[every, c]
+        pred_c = tour[every, (i - 1) % n]
+        if skip_neighbours:
+            succ_c = tour[every, (i + 1) % n]
+            w = jnp.where((cand == pred_c[:, None]) | (cand == succ_c[:, None]), 0.0, w)
         idx, ok = _sample(w, jax.random.uniform(k_pick, (m,)), q0)
         v = jnp.where(ok, cand[every, idx], c)  # no positive weight: no move
-        i, j = pos[every, c], pos[every, v]
-        pred_c = tour[every, (i - 1) % n]
         # the side of c whose edge goes: walking, not the edge the ant arrived by
         after = side if not walk else jnp.where(t == 0, side, came == pred_c)
-        lo = jnp.minimum(i, j) + after.astype(jnp.int32)
-        hi = jnp.maximum(i, j) - (~after).astype(jnp.int32)
-        inside = (places >= lo[:, None]) & (places <= hi[:, None])
-        mirror = (lo + hi)[:, None]
-        tour = jnp.take_along_axis(tour, jnp.where(inside, mirror - places, places), axis=1)
-        moved = (pos >= lo[:, None]) & (pos <= hi[:, None])
-        pos = jnp.where(moved, mirror - pos, pos)
+        d = jnp.where(after, 1, -1).astype(jnp.int32)  # the frame runs from c to that side
+        r = (d * (pos[every, v] - i)) % n  # v's offset from c in the frame (0: no move)
+        one = jnp.ones_like(r)
+        if kind == "2opt":  # the stretch succ c .. v reversed: edges (c, v), (succ c, succ v)
+            return (*_reverse(tour, pos, i, d, one, r), v, c)
+        # or3opt: the segment C = v and the cities after it, at most `segment` long, moves
+        # between c and succ c: three reversals, edges (c, v), (end of C, succ c), (pred v,
+        # the city after C)
+        length = jax.random.randint(k_len, (m,), 1, segment + 1, jnp.int32)
+        # C ends before c's other neighbour: the edge the ant arrived by stays (a v drawn
+        # there, without skip_neighbours, makes the three reversals a no-op)
+        e = jnp.where(r > 0, jnp.minimum(r + length - 1, n - 2), 0)
+        tour, pos = _reverse(tour, pos, i, d, one, e)
+        tour, pos = _reverse(tour, pos, i, d, one, e - r + 1)
+        tour, pos = _reverse(tour, pos, i, d, e - r + 2, e)
         return tour, pos, v, c
 
     carry = (tour, pos, jnp.zeros((m,), jnp.int32), jnp.full((m,), -1, jnp.int32))

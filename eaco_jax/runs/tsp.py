@@ -177,8 +177,9 @@ class TspSettings:
                                 "tour position), both the same tours; auto: the dense path's "
                                 "measured plan, the sparse path's scan; moves (sparse path, "
                                 "with --max-new-edges N: each ant is the best tour changed by "
-                                "N 2-opt moves, a loop over the moves, not the cities)",
-                                choices=("auto", "kernel", "scan", "moves"))
+                                "N 2-opt moves, a loop over the moves, not the cities; "
+                                "moves-or3opt: segment-insertion moves instead)",
+                                choices=("auto", "kernel", "scan", "moves", "moves-or3opt"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
                                         "tour, then follows it (default: full construction)")
@@ -230,9 +231,11 @@ def build(s: TspSettings) -> Built:
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges,
-                         construction="moves" if s.construction == "moves" else "ants",
-                         construction_fallback={"scan": "lazy", "moves": "auto"}.get(
-                             s.construction, s.construction))
+                         construction=(s.construction if s.construction.startswith("moves")
+                                       else "ants"),
+                         construction_fallback=("auto" if s.construction.startswith("moves")
+                                                else {"scan": "lazy"}.get(s.construction,
+                                                                          s.construction)))
     params = params_from(strategy, problem, s.params)
     # time alone: the sparse path's iterations take seconds, so the clock is read after each
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)

@@ -97,7 +97,7 @@ PRESETS = ("default", "mmas", "paper")
 CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
 #: how ants build tours on the sparse path (GraphEACO.construction)
-CONSTRUCTIONS = ("ants", "moves")
+CONSTRUCTIONS = ("ants", "moves", "moves-or3opt")
 
 
 @struct.dataclass
@@ -250,9 +250,10 @@ class GraphEACO(Strategy):
     #: sparse problems: Focused ACO's construction, each ant adds at most this many edges
     #: that are not in the best tour so far, then follows it (None: full construction)
     max_new_edges: int | None = None
-    #: sparse problems, how the ants build: "ants" (city by city, ``construction_sparse``) or
+    #: sparse problems, how the ants build: "ants" (city by city, ``construction_sparse``),
     #: "moves" (the best tour so far changed by ``max_new_edges`` 2-opt moves each,
-    #: ``construction_moves``: a loop over the moves, not over the n cities)
+    #: ``construction_moves``: a loop over the moves, not over the n cities) or
+    #: "moves-or3opt" (the same with segment-insertion moves, three new edges each)
     construction: str = "ants"
     problem_kind: ClassVar[str] = "graph"
 
@@ -276,9 +277,9 @@ class GraphEACO(Strategy):
         if self.construction not in CONSTRUCTIONS:
             raise ConfigError(f"construction={self.construction!r} is not one of "
                               f"{CONSTRUCTIONS}")
-        if self.construction == "moves" and self.max_new_edges is None:
-            raise ConfigError("construction='moves' applies max_new_edges 2-opt moves per "
-                              "ant: give --max-new-edges N (max_new_edges=N)")
+        if self.construction != "ants" and self.max_new_edges is None:
+            raise ConfigError(f"construction={self.construction!r} applies max_new_edges "
+                              "moves per ant: give --max-new-edges N (max_new_edges=N)")
         if self.ls_moves_per_step < 1:
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         for name, value, allowed in (
@@ -364,10 +365,10 @@ class GraphEACO(Strategy):
                 raise ConfigError("candidate_lists=False needs a distance matrix; the sparse "
                                   "path builds tours on the candidate lists")
             return problem
-        if self.construction == "moves":
-            raise ConfigError("construction='moves' needs the sparse path (no distance "
-                              "matrix): pass --sparse on to eaco tsp, or sparse=True to "
-                              "load_tsplib")
+        if self.construction != "ants":
+            raise ConfigError(f"construction={self.construction!r} needs the sparse path "
+                              "(no distance matrix): pass --sparse on to eaco tsp, or "
+                              "sparse=True to load_tsplib")
         if self.max_new_edges is not None:
             raise ConfigError("max_new_edges (focused construction) needs the sparse path "
                               "(no distance matrix): pass --sparse on to eaco tsp, or "
@@ -484,10 +485,11 @@ class GraphEACO(Strategy):
             if sparse:  # the fallback follows the best tour so far (the first tour before)
                 ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
                                 state.first_tour)
-                if self.construction == "moves":
-                    return construct_tours_moves(k_build, stacked, problem.neighbors, ref,
-                                                 self.max_new_edges, m + 1, q0, offset,
-                                                 chaos_factor)
+                if self.construction != "ants":
+                    return construct_tours_moves(
+                        k_build, stacked, problem.neighbors, ref, self.max_new_edges, m + 1,
+                        q0, offset, chaos_factor,
+                        kind="or3opt" if self.construction == "moves-or3opt" else "2opt")
                 return construct_tours_sparse(k_build, stacked, problem.neighbors, starts, ref,
                                               q0, offset, chaos_factor, self.max_new_edges,
                                               self._sparse_plan())
