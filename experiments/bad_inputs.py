@@ -978,7 +978,6 @@ def walk_options_and_scripts_rows() -> None:
     coordinates, and the large-TSP scripts (issue 33): an unknown instance, no LKH binary."""
     import contextlib
     import io
-    import sys
 
     rows2 = "tests/test_bad_input_rows_2.py::"
     record("`eaco walk default --backend mjx --impl warp` on a machine without CUDA", "CLI",
@@ -998,10 +997,7 @@ def walk_options_and_scripts_rows() -> None:
            lambda: TSP.from_coords(np.array([[0.0, 0.0], [3e12, 0.0], [3e12, 3e12]]),
                                    metric="EUC_2D"), test=rescale)
 
-    here = str(Path(__file__).resolve().parent)
-    if here not in sys.path:
-        sys.path.insert(0, here)
-    import lkh_reference
+    import lkh_reference  # siblings: the script's folder is on the path when run as a script
     import tsp_large
 
     record("`experiments/tsp_large.py --sizes --instances no_such_instance`", "script",
