@@ -163,6 +163,28 @@ def test_mo_gait_report_names_the_shape_or_the_non_finite_values():
         problem.report(np.zeros(3))
     bad = np.zeros(problem.dim)
     bad[2] = np.nan
-    with pytest.raises(ea.ProblemError, match="a gait needs 14 finite parameters, got 1 NaN or "
-                                              "infinite$"):
+    with pytest.raises(ea.ProblemError, match="a gait needs 14 finite parameters, got NaN or "
+                                              "infinite at index 2$"):
         problem.report(bad)
+
+
+def test_every_one_gait_entry_names_the_non_finite_index_not_a_right_shape():
+    """report, simulate and evaluate_trials take one gait: a right-shaped vector with NaN or
+    inf is refused by index, never as "got shape (14,)"."""
+    from eaco_jax.gait.validate import evaluate_trials
+    from eaco_jax.problems.gait import make_gait_problem
+
+    plain = make_gait_problem("nao", backend="native", horizon=0.2)
+    constrained = make_gait_problem("nao", backend="native", horizon=0.2, constrained=True)
+    bad = np.zeros(14)
+    bad[[0, 13]] = [np.inf, np.nan]
+    calls = {"simulate": lambda p: plain.simulate(p), "report": constrained.report,
+             "trials": lambda p: evaluate_trials(plain, p, n=1)}
+    for what, call in calls.items():
+        lead = "simulate" if what == "simulate" else "a gait"
+        with pytest.raises(ea.ProblemError, match=rf"^{lead} needs 14 finite parameters, got NaN "
+                                                  r"or infinite at index 0, 13$"):
+            call(bad)
+        with pytest.raises(ea.ProblemError, match=rf"^{lead} needs 14 finite parameters, got "
+                                                  r"shape \(15,\)$"):
+            call(np.zeros(15))

@@ -41,6 +41,7 @@ from eaco_jax.gait.motors import motor_model
 from eaco_jax.gait.robot import model_xml
 from eaco_jax.gait.rollout_native import initial_state, substeps
 from eaco_jax.gait.stats import fall_rate
+from eaco_jax.gait.walk_engine import gait_vector
 from eaco_jax.gait.worlds import STREAMS, RobustConfig, couple_controls, stream_key
 
 TRIAL_STREAM = STREAMS["test"]
@@ -48,9 +49,7 @@ TRIAL_STREAM = STREAMS["test"]
 
 
 def _params(problem: Any, params: Any) -> jax.Array:
-    p = np.asarray(params, np.float32).reshape(-1)
-    if p.shape != (problem.dim,) or not np.all(np.isfinite(p)):
-        raise ProblemError(f"a gait needs {problem.dim} finite parameters, got shape {p.shape}")
+    p = gait_vector(params, problem.dim)
     return jnp.clip(jnp.asarray(p)[None], problem.lower, problem.upper)
 
 

@@ -52,6 +52,7 @@ from eaco_jax.gait.walk_engine import (
     IK_CHOICES,
     bounds,
     control_sequence,
+    gait_vector,
     param_names,
     uses_analytic_ik,
 )
@@ -282,9 +283,7 @@ class GaitProblem(Box):
         ``torso_up`` (T+1, 3), ``controls`` (T, nu) (the commanded targets) and ``qpos``
         (T+1, nq) (the full configuration after each control step, for videos).
         """
-        p = np.asarray(params, np.float32).reshape(-1)
-        if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
-            raise ProblemError(f"simulate needs {self.dim} finite parameters, got {p.shape}")
+        p = gait_vector(params, self.dim, "simulate")
         if horizon is not None:
             check_horizon(float(horizon), self.spec)
         prob = self if backend is None and horizon is None else self.replace(
@@ -411,9 +410,7 @@ class ConstrainedGaitProblem(GaitProblem):
         """One gait's ``speed``, ``violation``, ``feasible`` and per constraint its value,
         limit, margin and whether it holds (:func:`eaco_jax.gait.constraints.table`), in
         ``worlds`` (None: the nominal world)."""
-        p = np.asarray(params, np.float32).reshape(-1)
-        if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
-            raise ProblemError(f"a gait needs {self.dim} finite parameters, got shape {p.shape}")
+        p = gait_vector(params, self.dim)
         x = jnp.clip(jnp.asarray(p)[None], self.lower, self.upper)
         speed, vals, g = jax.jit(self.constraints)(x, worlds)
         v = float(np.asarray(gc.violation(g))[0])

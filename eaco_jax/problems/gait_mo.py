@@ -40,6 +40,7 @@ from flax import struct
 from eaco_jax.gait import constraints as gc
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import aggregate
+from eaco_jax.gait.walk_engine import gait_vector
 from eaco_jax.gait.worlds import RobustConfig, Worlds
 from eaco_jax.problems.base import Evaluation, ProblemError
 from eaco_jax.problems.gait import ConstrainedGaitProblem, make_gait_problem
@@ -123,11 +124,7 @@ class MultiObjectiveGaitProblem(ConstrainedGaitProblem):
 
     def report(self, params: Any, worlds: Worlds | None = None) -> dict[str, Any]:
         """One gait's objectives, violation, feasibility and constraint table in ``worlds``."""
-        p = np.asarray(params, np.float32).reshape(-1)
-        if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
-            got = f"shape {p.shape}" if p.shape != (self.dim,) else \
-                f"{int(np.sum(~np.isfinite(p)))} NaN or infinite"
-            raise ProblemError(f"a gait needs {self.dim} finite parameters, got {got}")
+        p = gait_vector(params, self.dim)
         x = jnp.clip(jnp.asarray(p)[None], self.lower, self.upper)
         f, g, vals = jax.jit(self.objectives)(x, worlds)
         v = float(np.asarray(gc.violation(g))[0])
