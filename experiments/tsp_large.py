@@ -208,15 +208,16 @@ def main(argv: list[str] | None = None) -> None:
     if args.rescore:
         rescore(args.rescore, args.out, lkh, argv)
         return
-    jobs = [(random_instance(args.work, n, s), sec, n) for n, sec in zip(args.sizes, seconds,
-                                                                          strict=True)
-            for s in args.instance_seeds]
+    named = []  # checked before any random instance is written
     for name in args.instances:
         path = find_file(name)
         if path is None:
             raise SystemExit(f"{name}: no such instance (bundled: d15112 and the small ones; "
                              "or pass a path to a .tsp file)")
-        jobs.append((path, args.instance_seconds, 0))
+        named.append((path, args.instance_seconds, 0))
+    jobs = [(random_instance(args.work, n, s), sec, n) for n, sec in zip(args.sizes, seconds,
+                                                                          strict=True)
+            for s in args.instance_seeds] + named
     rows, commands = [], []
     if args.append and args.out.is_file():
         old = json.loads(args.out.read_text())

@@ -130,6 +130,11 @@ def test_tsp_large_names_d15112_and_refuses_unknown_names(scripts, tmp_path):
     with pytest.raises(SystemExit, match="no_such_instance: no such instance"):
         large.main(["--sizes", "--instances", "no_such_instance", "--out",
                     str(tmp_path / "r.json")])
+    # a bad name is refused before the random instances are written (nothing to clean up)
+    with pytest.raises(SystemExit, match="no_such_instance: no such instance"):
+        large.main(["--sizes", "50", "--instances", "no_such_instance", "--work",
+                    str(tmp_path / "work"), "--out", str(tmp_path / "r.json")])
+    assert not (tmp_path / "work").exists() and not (tmp_path / "r.json").exists()
 
 
 def test_d15112_ships_with_an_optimum_between_its_spanning_tree_and_a_tour():
