@@ -293,6 +293,12 @@ def sparse_tsp_rows() -> None:
            lambda: cli("tsp", "eil51", "--max-new-edges", "5", "--iterations", "2", "--quiet"),
            test=(cli_test, "tests/test_bad_input_rows_2.py::"
                  "test_max_new_edges_on_the_dense_path_names_the_cli_and_the_library_fix"))
+    record("`eaco tsp eil51 --construction moves` (no --max-new-edges)", "CLI",
+           lambda: cli("tsp", "eil51", "--construction", "moves", "--iterations", "2",
+                       "--quiet"), test=cli_test)
+    record("`eaco tsp eil51 --construction moves --max-new-edges 4` (dense path)", "CLI",
+           lambda: cli("tsp", "eil51", "--construction", "moves", "--max-new-edges", "4",
+                       "--iterations", "2", "--quiet"), test=cli_test)
     matrix = "\n".join(" ".join(str(0 if i == j else 7 * (i + j) + 3) for j in range(5))
                        for i in range(5))
     explicit = write_tsp("ex5.tsp", "NAME: ex5\nTYPE: TSP\nDIMENSION: 5\nEDGE_WEIGHT_TYPE: "

@@ -96,6 +96,11 @@ def test_interrupt_lines_say_what_was_kept(tmp_path):
     (("tsp", "eil51", "--max-new-edges", "0"), "max_new_edges=0 is outside its range 1.."),
     (("tsp", "eil51", "--max-new-edges", "5", "--iterations", "2", "--quiet"),
      "max_new_edges (focused construction) needs the sparse path"),
+    (("tsp", "eil51", "--construction", "moves", "--iterations", "2", "--quiet"),
+     "construction='moves' applies max_new_edges moves per ant: give --max-new-edges N"),
+    (("tsp", "eil51", "--construction", "moves", "--max-new-edges", "4", "--iterations", "2",
+      "--quiet"), "construction='moves' needs the sparse path (no distance matrix): pass "
+     "--sparse on to eaco tsp"),
     (("walk", "nosuch.json"), "is not a file; give a scene JSON file, 'default' or "
      "'random:SEED'"),
     (("walk", "random:x"), "scene 'random:x': write random:SEED with an integer seed"),
