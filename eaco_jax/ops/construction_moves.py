@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 
 from eaco_jax.ops.construction import _sample
+from eaco_jax.ops.construction_sparse import candidate_rows
 
 Array = jax.Array
 
@@ -90,17 +91,12 @@ def construct_tours_moves(
     """
     n, k = candidates.shape
     m = int(num_ants)
-    if cand_w.shape[0] % n or cand_w.shape[1] != k:
-        raise ValueError(f"cand_w must be (multiple of {n}, {k}), got {cand_w.shape}")
+    cands, q0, row_offset = candidate_rows(cand_w, candidates, m, q0, row_offset)
     if kind not in ("2opt", "or3opt"):
         raise ValueError(f"kind={kind!r} is not one of 2opt, or3opt")
     if n_moves < 0:
         raise ValueError(f"n_moves must be >= 0, got {n_moves}")
     ref = jnp.asarray(ref_tour, jnp.int32)
-    cands = jnp.asarray(candidates, jnp.int32)
-    row_offset = (jnp.zeros((m,), jnp.int32) if row_offset is None
-                  else jnp.asarray(row_offset, jnp.int32))
-    q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
     tour = jnp.broadcast_to(ref, (m, n))
     pos = jnp.broadcast_to(jnp.zeros(n, jnp.int32).at[ref].set(jnp.arange(n, dtype=jnp.int32)),
                            (m, n))

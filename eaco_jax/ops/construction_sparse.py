@@ -46,6 +46,20 @@ def _unlink(nxt_l: Array, prv_l: Array, ants: Array, city: Array) -> tuple[Array
     return nxt_l, prv_l
 
 
+def candidate_rows(cand_w: Array, candidates: Array, m: int, q0: Array | float,
+                   row_offset: Array | None) -> tuple[Array, Array, Array]:
+    """The per-ant arguments both candidate-list constructions take, checked and shaped:
+    ``(candidates int32 (n, k), q0 float32 (m,), row_offset int32 (m,), default 0)``;
+    ``cand_w`` must be ``(multiple of n, k)``."""
+    n, k = candidates.shape
+    if cand_w.shape[0] % n or cand_w.shape[1] != k:
+        raise ValueError(f"cand_w must be (multiple of {n}, {k}), got {cand_w.shape}")
+    row_offset = (jnp.zeros((m,), jnp.int32) if row_offset is None
+                  else jnp.asarray(row_offset, jnp.int32))
+    q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
+    return jnp.asarray(candidates, jnp.int32), q0, row_offset
+
+
 def construct_tours_sparse(
     key: Array,
     cand_w: Array,
@@ -81,13 +95,8 @@ def construct_tours_sparse(
     """
     n, k = candidates.shape
     m = starts.shape[0]
-    if cand_w.shape[0] % n or cand_w.shape[1] != k:
-        raise ValueError(f"cand_w must be (multiple of {n}, {k}), got {cand_w.shape}")
+    cands, q0, row_offset = candidate_rows(cand_w, candidates, m, q0, row_offset)
     starts = starts.astype(jnp.int32)
-    row_offset = (jnp.zeros((m,), jnp.int32) if row_offset is None
-                  else row_offset.astype(jnp.int32))
-    q0 = jnp.broadcast_to(jnp.asarray(q0, jnp.float32), (m,))
-    cands = jnp.asarray(candidates, jnp.int32)
     every = jnp.arange(m, dtype=jnp.int32)
     ant_base = (every * n)[:, None]
     alive = jnp.arange(n)[None, :] != starts[:, None]
