@@ -32,6 +32,7 @@ from datetime import date
 from pathlib import Path
 
 from common import device_info
+from walk_gather import totals
 
 from eaco_jax.errors import ProblemError
 from eaco_jax.outputs import write_json
@@ -168,26 +169,7 @@ def main() -> None:
                                                    for x in w["walks"]), default=None),
                      "file": _relative(folder / "walk.json")})
     done = [r for r in rows if "skipped" not in r]
-    total = {"n": sum(r["n"] for r in done), "successes": sum(r["successes"] for r in done),
-             "falls": sum(r["falls"] for r in done), "contacts": sum(r["contacts"] for r in done),
-             "nominal_successes": sum(r["nominal_success"] for r in done),
-             "scenes": len(done),
-             "walked_over_planned_max": max((r["walked_over_planned_max"] for r in done
-                                             if r["walked_over_planned_max"] is not None),
-                                            default=None),
-             "walked_over_planned_min": min((min(r["walked_over_planned_success"])
-                                             for r in done if r["walked_over_planned_success"]),
-                                            default=None),
-             "within_20_percent": sum(sum(abs(x - 1) <= 0.2
-                                          for x in r["walked_over_planned_success"])
-                                      for r in done),
-             "closest_approach_m_min_success": min(
-                 (r["closest_approach_m_min_success"] for r in done
-                  if r["closest_approach_m_min_success"] is not None), default=None)}
-    from eaco_jax.gait.stats import falls_interval
-
-    total["success_rate"] = total["successes"] / max(total["n"], 1)
-    total["success_rate_ci95"] = list(falls_interval(total["successes"], total["n"]))
+    total = totals(done)
     write_json(args.out / "summary.json", {
         "command": "python experiments/walk_route.py " + " ".join(sys.argv[1:]),
         "date": str(date.today()), "device": device_info(), "seconds": time.perf_counter() - t0,
