@@ -143,3 +143,37 @@ def test_target_uses_full_precision_feasible_objective():
     assert Target(7049.24802052867 + 1e-4)(S, p)
     S.best_violation = np.float64(1e-3)
     assert not Target(7049.24802052867 + 1e-4)(S, p)  # infeasible never reaches a target
+
+
+def test_kept_programs_make_room_when_the_process_nears_its_map_limit(monkeypatch):
+    """Past half of vm.max_map_count the older half of the kept chunks and initialisers go
+    before the next compilation (each XLA:CPU program holds hundreds of memory maps, and a
+    process at the limit dies inside XLA); below it, and where /proc says nothing, all stay."""
+    from eaco_jax.driver import programs
+    from eaco_jax.strategies import GraphEACO
+
+    used, limit = programs._maps()  # this is Linux: the real counts
+    assert 0 < used < limit
+    tsp = ea.problems.get("burma14")
+
+    def ants_kept(cache):
+        return sorted(k[1].num_ants for k in cache)
+
+    monkeypatch.setattr(programs, "_maps", lambda: None)
+    programs.clear_compiled()
+    for ants in (4, 5, 6, 7):
+        ea.minimize(tsp, GraphEACO(num_ants=ants), seed=0, iterations=1)
+    assert ants_kept(programs._COMPILED) == ants_kept(programs._INITS) == [4, 5, 6, 7]
+    calls = []
+
+    def crowded():  # over half the limit once, then (the older programs freed) under it
+        calls.append(1)
+        return (600, 1000) if len(calls) == 1 else (400, 1000)
+
+    monkeypatch.setattr(programs, "_maps", crowded)
+    ea.minimize(tsp, GraphEACO(num_ants=8), seed=0, iterations=1)
+    assert ants_kept(programs._COMPILED) == ants_kept(programs._INITS) == [6, 7, 8]
+    monkeypatch.setattr(programs, "_maps", lambda: (500, 1000))  # exactly half: room enough
+    ea.minimize(tsp, GraphEACO(num_ants=9), seed=0, iterations=1)
+    assert ants_kept(programs._COMPILED) == [6, 7, 8, 9]
+    programs.clear_compiled()

@@ -109,6 +109,39 @@ def make_chunk_fn(strategy: Strategy, length: int, batched: bool,
 _COMPILED: collections.OrderedDict[Any, Any] = collections.OrderedDict()
 _COMPILED_MAX = 32
 _INITS: collections.OrderedDict[Any, Any] = collections.OrderedDict()
+#: the share of Linux's vm.max_map_count past which kept programs are let go: each XLA:CPU
+#: program holds memory maps of its own (claim program-maps-per-program), so the 32 chunks and
+#: 32 initialisers the LRU keeps can fill most of the default limit, and a process at the
+#: limit dies inside XLA (a segfault) at its next compilation (claim program-maps-peak)
+_MAPS_SHARE = 0.5
+
+
+def _maps() -> tuple[int, int] | None:
+    """(memory maps this process holds, vm.max_map_count), or None where Linux's /proc does
+    not say."""
+    try:
+        with open("/proc/sys/vm/max_map_count") as fh:
+            limit = int(fh.read())
+        with open("/proc/self/maps", "rb") as fh:
+            used = sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 20), b""))
+    except (OSError, ValueError):
+        return None
+    return used, limit
+
+
+def _make_room() -> None:
+    """Forget the oldest compiled programs (chunks and initialisers alike, oldest first of
+    each) while the process holds more than :data:`_MAPS_SHARE` of its allowed memory maps."""
+    import gc
+
+    while _COMPILED or _INITS:
+        m = _maps()
+        if m is None or m[0] <= _MAPS_SHARE * m[1]:
+            return
+        for cache in (_COMPILED, _INITS):
+            for _ in range((len(cache) + 1) // 2):  # the older half of each
+                cache.popitem(last=False)
+        gc.collect()
 
 
 def _signature(tree: Any) -> tuple:
@@ -152,6 +185,7 @@ def _program(cache: collections.OrderedDict, key: tuple, make: Callable[[], Call
     t0 = time.perf_counter()
     disk_key = (program_cache.program_key(key) if program_cache.single_device(args)
                 and program_cache.package_code_only(strategy, *args) else None)
+    _make_room()
     compiled, _how = polled(lambda: program_cache.compiled(make(), args, disk_key),
                              interrupted)
     cache[key] = compiled
