@@ -173,17 +173,17 @@ def param_names(spec) -> tuple[str, ...]:
     return TROT_PARAM_NAMES if _trots(spec) else ANT_PARAM_NAMES
 
 
-def gait_vector(params, dim: int, what: str = "a gait", error: type = ProblemError
-                ) -> np.ndarray:
-    """One gait's parameters as a float32 ``(dim,)`` vector, or one ``error`` line saying
-    whether the shape or the values are wrong (which entries are NaN or infinite)."""
+def gait_vector(params, dim: int, what: str = "a gait") -> np.ndarray:
+    """One gait's parameters as a float32 ``(dim,)`` vector, or one :class:`ProblemError` line
+    saying whether the shape or the values are wrong (which entries are NaN or infinite)."""
     p = np.asarray(params, np.float32).reshape(-1)
     if p.shape != (dim,):
-        raise error(f"{what} needs {dim} finite parameters, got shape {p.shape}")
+        raise ProblemError(f"{what} needs {dim} finite parameters, got shape {p.shape}")
     bad = np.flatnonzero(~np.isfinite(p))
     if bad.size:
-        raise error(f"{what} needs {dim} finite parameters, got NaN or infinite at index "
-                    f"{', '.join(str(int(i)) for i in bad[:5])}{' ...' if bad.size > 5 else ''}")
+        where = ", ".join(str(int(i)) for i in bad[:5]) + (" ..." if bad.size > 5 else "")
+        raise ProblemError(f"{what} needs {dim} finite parameters, got NaN or infinite at "
+                           f"index {where}")
     return p
 
 
