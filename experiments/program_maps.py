@@ -19,12 +19,8 @@ from pathlib import Path
 from common import write_results
 
 import eaco_jax as ea
+from eaco_jax.driver.programs import memory_maps
 from eaco_jax.strategies import GraphEACO
-
-
-def maps_now() -> int:
-    with open("/proc/self/maps", "rb") as fh:
-        return sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 20), b""))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -34,17 +30,17 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--instance", default="eil51")
     ap.add_argument("--out", type=Path, default=Path("experiments/results/program_maps.json"))
     args = ap.parse_args(argv)
-    limit = int(Path("/proc/sys/vm/max_map_count").read_text())
+    limit = memory_maps()[1]
     tsp = ea.problems.get(args.instance)
     gc.collect()
-    rows = [{"programs": 0, "maps": maps_now()}]
+    rows = [{"programs": 0, "maps": memory_maps()[0]}]
     print(f"{'programs':>8} {'maps':>7} {'share of limit':>14}")
     print(f"{0:>8} {rows[0]['maps']:>7} {rows[0]['maps'] / limit:>14.3f}")
     for i in range(args.programs):
         ea.minimize(tsp, GraphEACO(num_ants=4 + i), seed=0, iterations=2)
         if (i + 1) % args.every == 0:
             gc.collect()
-            rows.append({"programs": i + 1, "maps": maps_now()})
+            rows.append({"programs": i + 1, "maps": memory_maps()[0]})
             print(f"{i + 1:>8} {rows[-1]['maps']:>7} {rows[-1]['maps'] / limit:>14.3f}",
                   flush=True)
     first = rows[1]

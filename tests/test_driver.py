@@ -152,14 +152,14 @@ def test_kept_programs_make_room_when_the_process_nears_its_map_limit(monkeypatc
     from eaco_jax.driver import programs
     from eaco_jax.strategies import GraphEACO
 
-    used, limit = programs._maps()  # this is Linux: the real counts
+    used, limit = programs.memory_maps()  # this is Linux: the real counts
     assert 0 < used < limit
     tsp = ea.problems.get("burma14")
 
     def ants_kept(cache):
         return sorted(k[1].num_ants for k in cache)
 
-    monkeypatch.setattr(programs, "_maps", lambda: None)
+    monkeypatch.setattr(programs, "memory_maps", lambda: None)
     programs.clear_compiled()
     for ants in (4, 5, 6, 7):
         ea.minimize(tsp, GraphEACO(num_ants=ants), seed=0, iterations=1)
@@ -170,10 +170,10 @@ def test_kept_programs_make_room_when_the_process_nears_its_map_limit(monkeypatc
         calls.append(1)
         return (600, 1000) if len(calls) == 1 else (400, 1000)
 
-    monkeypatch.setattr(programs, "_maps", crowded)
+    monkeypatch.setattr(programs, "memory_maps", crowded)
     ea.minimize(tsp, GraphEACO(num_ants=8), seed=0, iterations=1)
     assert ants_kept(programs._COMPILED) == ants_kept(programs._INITS) == [6, 7, 8]
-    monkeypatch.setattr(programs, "_maps", lambda: (500, 1000))  # exactly half: room enough
+    monkeypatch.setattr(programs, "memory_maps", lambda: (500, 1000))  # exactly half: room enough
     ea.minimize(tsp, GraphEACO(num_ants=9), seed=0, iterations=1)
     assert ants_kept(programs._COMPILED) == [6, 7, 8, 9]
     programs.clear_compiled()

@@ -116,7 +116,7 @@ _INITS: collections.OrderedDict[Any, Any] = collections.OrderedDict()
 _MAPS_SHARE = 0.5
 
 
-def _maps() -> tuple[int, int] | None:
+def memory_maps() -> tuple[int, int] | None:
     """(memory maps this process holds, vm.max_map_count), or None where Linux's /proc does
     not say."""
     try:
@@ -135,7 +135,7 @@ def _make_room() -> None:
     import gc
 
     while _COMPILED or _INITS:
-        m = _maps()
+        m = memory_maps()
         if m is None or m[0] <= _MAPS_SHARE * m[1]:
             return
         for cache in (_COMPILED, _INITS):
