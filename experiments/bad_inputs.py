@@ -258,8 +258,8 @@ def walk_rows() -> None:
            lambda: cli("walk", "default", "--resume-deg", "200"), test=(cli_test, controller))
     record("`eaco walk default --turn-deg 270`", "CLI",
            lambda: cli("walk", "default", "--turn-deg", "270"), test=controller)
-    record("`eaco walk default --slow-deg 70` (above --stop-deg 60)", "CLI",
-           lambda: cli("walk", "default", "--slow-deg", "70"), test=controller)
+    record("`eaco walk default --slow-deg 130` (above --stop-deg 120)", "CLI",
+           lambda: cli("walk", "default", "--slow-deg", "130"), test=controller)
     record("`eaco walk default --min-step 0`", "CLI",
            lambda: cli("walk", "default", "--min-step", "0"), test=controller)
     record("`eaco walk default --lookahead -1`", "CLI",
@@ -1035,7 +1035,7 @@ def steered_and_mo_gait_rows() -> None:
     for field, value, held in (
             ("segments", 0, (steer, refusals)), ("error_deg", 200.0, steer),
             ("error_deg", [75.0], steer), ("stop_deg", float("nan"), steer),
-            ("slow_deg", 70.0, (steer, refusals)), ("slow_deg", "15", steer),
+            ("slow_deg", 130.0, (steer, refusals)), ("slow_deg", "15", steer),
             ("min_step", 1.5, (steer, refusals)), ("fall_cost", "x", steer),
             ("fall_cost", -1.0, steer)):
         record(f"`SteerConfig({field}={value!r})`", "API",

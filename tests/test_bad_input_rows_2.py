@@ -126,7 +126,7 @@ def test_too_large_distances_name_what_to_rescale(tmp_path):
                          "200.0"),
     ("error_deg", [75.0], "steer error_deg must be a finite number > 0, got [75.0]"),
     ("stop_deg", math.nan, "steer stop_deg must be a finite number > 0, got nan"),
-    ("slow_deg", 70.0, "steer slow_deg must be in [0, stop_deg=60.0), got 70.0"),
+    ("slow_deg", 130.0, "steer slow_deg must be in [0, stop_deg=120.0), got 130.0"),
     ("slow_deg", "15", "steer slow_deg must be a number, got '15'"),
     ("min_step", [0.5], "steer min_step must be a number, got [0.5]"),
     ("min_step", 1.5, "steer min_step must be in (0, 1], got 1.5"),

@@ -72,7 +72,8 @@ def test_schedule_segments_and_blend():
 
 def test_commands_come_from_the_worlds_key():
     prob = make_steered_problem("nao", backend="native", horizon=2.0,
-                                robust=RobustConfig(R=64, seed=0))
+                                robust=RobustConfig(R=64, seed=0),
+                                steer=SteerConfig(stop_deg=60.0))  # errors reach the floor
     cfg = prob.steer
     a = world_commands(prob.worlds(stream_key(0, "optimisation", 3)), cfg)
     b = world_commands(prob.worlds(stream_key(0, "optimisation", 3)), cfg)
@@ -131,7 +132,7 @@ def test_refusals():
     with pytest.raises(ProblemError, match="min_step"):
         SteerConfig(min_step=0.0)
     with pytest.raises(ProblemError, match="slow_deg"):
-        SteerConfig(slow_deg=70.0)
+        SteerConfig(slow_deg=130.0)
     with pytest.raises(ProblemError, match="steer must be a SteerConfig"):
         make_steered_problem("nao", backend="native", robust=RobustConfig(), steer={})
     prob = make_steered_problem("nao", backend="native", robust=RobustConfig(R=1))

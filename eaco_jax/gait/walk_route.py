@@ -151,7 +151,8 @@ class Controller:
     """Settings of the path-following controller (lengths in m, angles in deg, rates in rad/s).
 
     The defaults were chosen on tuning scenes and selection-stream worlds (claims
-    ``walk-controller-selection``; ``walk-steer-tuning-chosen`` for ``steer_gain``), not on the
+    ``walk-controller-selection``; ``walk-steer-tuning-chosen`` for ``steer_gain``;
+    ``walk-spec-stop-deg-120-successes`` for ``stop_deg`` on the motor model), not on the
     scenes and worlds the walk is reported on.
     """
 
@@ -162,7 +163,7 @@ class Controller:
     steer_gain: float = 1.2  # forward gait's turn_rate [rad/s] per rad of heading error
     max_steer: float = 0.8  # clamp of the forward gait's turn_rate [rad/s]
     slow_deg: float = 15.0  # the forward gait's step shortens above this heading error ...
-    stop_deg: float = 60.0  # ... to min_step of its length at this error and beyond
+    stop_deg: float = 120.0  # ... to min_step of its length at this error and beyond
     min_step: float = 0.35
     blend_cycles: float = 0.5
     goal_radius: float = 0.15

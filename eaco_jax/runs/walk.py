@@ -77,7 +77,7 @@ class WalkSettings:
                                "[rad/s]")
     slow_deg: float = setting(15.0, "controller: shorten the forward step above this heading "
                               "error")
-    stop_deg: float = setting(60.0, "controller: ... to --min-step of its length at this error")
+    stop_deg: float = setting(120.0, "controller: ... to --min-step of its length at this error")
     min_step: float = setting(0.35, "controller: shortest forward step, a fraction of the "
                               "gait's")
     blend_cycles: float = setting(0.5, "controller: step cycles a gait change blends over")
