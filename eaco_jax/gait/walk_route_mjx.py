@@ -796,6 +796,7 @@ def _compiled(st: _Static):
             fell = active & ((height < spec.fall_height) | (up_z < cos_tilt))
             reached = active & ~fell & (jnp.linalg.norm(goal - pos, axis=1) <= c.goal_radius)
             ends = fell | reached
+            old = stt
             stt = {
                 "active": active & ~ends,
                 "closest": jnp.where(closer, dj, stt["closest"]),
@@ -813,7 +814,7 @@ def _compiled(st: _Static):
                                           stt["peak_current"]),
             }
             if warp:
-                stt = {**stt, "peak": jnp.maximum(stt["peak"], jnp.stack(
+                stt = {**stt, "peak": jnp.maximum(old["peak"], jnp.stack(
                     [jnp.max(d._impl.nacon), jnp.max(d._impl.nefc)]))}
             return (d, s, stt, hist)
 
