@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import mujoco
 import numpy as np
 
@@ -41,16 +40,10 @@ from eaco_jax.gait.motors import motor_model
 from eaco_jax.gait.robot import model_xml
 from eaco_jax.gait.rollout_native import initial_state, substeps
 from eaco_jax.gait.stats import fall_rate
-from eaco_jax.gait.walk_engine import gait_vector
 from eaco_jax.gait.worlds import STREAMS, RobustConfig, couple_controls, stream_key
 
 TRIAL_STREAM = STREAMS["test"]
 """Key stream id of reported trials: the test stream."""
-
-
-def _params(problem: Any, params: Any) -> jax.Array:
-    p = gait_vector(params, problem.dim)
-    return jnp.clip(jnp.asarray(p)[None], problem.lower, problem.upper)
 
 
 def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
@@ -75,7 +68,7 @@ def evaluate_trials(problem: Any, params: Any, n: int = 100, seed: int = 0,
     quality = problem.spec.has_motors  # energy figures need a motor datasheet
     cfg = config or problem.robust or RobustConfig()
     prob = problem.replace(robust=cfg, accuracy="accurate" if accurate else problem.accuracy)
-    x = _params(prob, params)
+    x = prob.gait_row(params)
     worlds = prob.worlds(stream_key(int(seed), stream, int(batch)), n)
     res = jax.jit(lambda x, w: prob.rollout(x, w, quality=quality))(x, worlds)
     res = jax.tree.map(lambda v: np.asarray(v)[0], res)  # (n, ...)
@@ -116,7 +109,7 @@ def export_run(problem: Any, params: Any, path: str | Path,
     the state, which plain MuJoCo's open-loop ``ctrl`` cannot replay); ``limits_in_physics``
     in the file says so."""
     prob = problem if horizon is None else problem.replace(horizon=float(horizon))
-    x = _params(prob, params)
+    x = prob.gait_row(params)
     spec = prob.spec
     xml = model_xml(spec, slope_deg=prob.slope_deg, accuracy=prob.accuracy)
     model = mujoco.MjModel.from_xml_string(xml)

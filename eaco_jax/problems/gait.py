@@ -263,6 +263,12 @@ class GaitProblem(Box):
         """Whether the search is constrained (a :class:`ConstrainedGaitProblem`)."""
         return False
 
+    def gait_row(self, params: Any) -> jax.Array:
+        """One gait's parameters as a ``(1, dim)`` batch clipped to the search bounds, checked
+        first (:func:`~eaco_jax.gait.walk_engine.gait_vector`: shape and finite values)."""
+        return jnp.clip(jnp.asarray(gait_vector(params, self.dim))[None], self.lower,
+                        self.upper)
+
     @property
     def num_inequality(self) -> int:
         return 0
@@ -410,8 +416,7 @@ class ConstrainedGaitProblem(GaitProblem):
         """One gait's ``speed``, ``violation``, ``feasible`` and per constraint its value,
         limit, margin and whether it holds (:func:`eaco_jax.gait.constraints.table`), in
         ``worlds`` (None: the nominal world)."""
-        p = gait_vector(params, self.dim)
-        x = jnp.clip(jnp.asarray(p)[None], self.lower, self.upper)
+        x = self.gait_row(params)
         speed, vals, g = jax.jit(self.constraints)(x, worlds)
         v = float(np.asarray(gc.violation(g))[0])
         return {"speed": float(np.asarray(speed)[0]), "violation": v, "feasible": v <= 0.0,

@@ -40,7 +40,6 @@ from flax import struct
 from eaco_jax.gait import constraints as gc
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import aggregate
-from eaco_jax.gait.walk_engine import gait_vector
 from eaco_jax.gait.worlds import RobustConfig, Worlds
 from eaco_jax.problems.base import Evaluation, ProblemError
 from eaco_jax.problems.gait import ConstrainedGaitProblem, make_gait_problem
@@ -124,8 +123,7 @@ class MultiObjectiveGaitProblem(ConstrainedGaitProblem):
 
     def report(self, params: Any, worlds: Worlds | None = None) -> dict[str, Any]:
         """One gait's objectives, violation, feasibility and constraint table in ``worlds``."""
-        p = gait_vector(params, self.dim)
-        x = jnp.clip(jnp.asarray(p)[None], self.lower, self.upper)
+        x = self.gait_row(params)
         f, g, vals = jax.jit(self.objectives)(x, worlds)
         v = float(np.asarray(gc.violation(g))[0])
         n = 1 if worlds is None else worlds.size
