@@ -3,6 +3,7 @@ controller's choices, and a short real walk on native MuJoCo (issue #32, item 4)
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -215,6 +216,23 @@ def test_library_turning_gaits_step_in_place(nao):
     assert g.turn_left[0] == 0.0 and g.turn_right[0] == 0.0
     assert g.turn_left[wr.TURN] > 0 > g.turn_right[wr.TURN]
     assert g.forward[0] > 0.05
+
+
+def test_a_gait_library_with_a_bad_vector_is_one_line_naming_the_entry(tmp_path):
+    src = json.loads((Path(wr.__file__).parent.parent / "data" / "walk_gaits" / "nao.json")
+                     .read_text())
+    bad = json.loads(json.dumps(src))
+    bad["gaits"]["turn_left"]["vector"][3] = float("nan")
+    (tmp_path / "nan.json").write_text(json.dumps(bad))
+    with pytest.raises(ConfigError, match=r"gaits.turn_left.vector needs \d+ finite parameters, "
+                                          r"got NaN or infinite at index 3 \("):
+        wr.load_walk_gaits(tmp_path / "nan.json")
+    bad = json.loads(json.dumps(src))
+    bad["gaits"]["forward"]["vector"] = bad["gaits"]["forward"]["vector"][:-1]
+    (tmp_path / "short.json").write_text(json.dumps(bad))
+    with pytest.raises(ConfigError, match=r"gaits.forward.vector needs \d+ finite parameters, "
+                                          r"got shape"):
+        wr.load_walk_gaits(tmp_path / "short.json")
 
 
 def test_walk_settings_default_to_the_controller_defaults():

@@ -63,7 +63,7 @@ from eaco_jax.gait import quality as ql
 from eaco_jax.gait import scene_world as sw
 from eaco_jax.gait.robot import RobotSpec
 from eaco_jax.gait.rollout_native import nominal_motor, to_torque_actuators
-from eaco_jax.gait.walk_engine import PARAM_NAMES, RAMP_TIME, joint_targets
+from eaco_jax.gait.walk_engine import PARAM_NAMES, RAMP_TIME, gait_vector, joint_targets
 from eaco_jax.gait.worlds import (
     VARIED_FIELDS,
     RobustConfig,
@@ -130,9 +130,10 @@ def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
                           f"gaits.turn_right with a 'vector' each ({type(err).__name__}: "
                           f"{err})") from None
     for m, v in vecs.items():
-        if v.shape != (len(PARAM_NAMES),) or not np.all(np.isfinite(v)):
-            raise ConfigError(f"{path}: gaits.{m}.vector must be {len(PARAM_NAMES)} finite "
-                              f"numbers ({', '.join(PARAM_NAMES)}), got shape {v.shape}")
+        try:
+            gait_vector(v, len(PARAM_NAMES), f"{path}: gaits.{m}.vector")
+        except ProblemError as err:  # a file's fault: a ConfigError naming the parameters
+            raise ConfigError(f"{err} ({', '.join(PARAM_NAMES)})") from None
     planning = data.get("planning")
     if planning is not None:
         try:
