@@ -264,6 +264,10 @@ def walk_rows() -> None:
            lambda: cli("walk", "default", "--min-step", "0"), test=controller)
     record("`eaco walk default --lookahead -1`", "CLI",
            lambda: cli("walk", "default", "--lookahead", "-1"), test=controller)
+    record("`eaco walk default --goal-turn-deg 10` (not above --resume-deg)", "CLI",
+           lambda: cli("walk", "default", "--goal-turn-deg", "10"),
+           test="tests/test_walk_route.py::"
+                "test_near_the_goal_the_controller_turns_on_the_spot_above_goal_turn_deg")
     record("`eaco gait-eval G --thermal` for the Go2 (no electrical motor data)", "CLI",
            lambda: cli("gait-eval", "experiments/results/go2_cpu_gait.json", "--thermal",
                        "--backend", "native", "--horizon", "1"),

@@ -218,6 +218,20 @@ def test_library_turning_gaits_step_in_place(nao):
     assert g.forward[0] > 0.05
 
 
+def test_near_the_goal_the_controller_turns_on_the_spot_above_goal_turn_deg():
+    c = wr.Controller(goal_turn_deg=90.0)
+    assert wr.near_goal(wr.Controller()) == wr.Controller()  # 180: never
+    assert wr.choose(math.radians(100), wr.FORWARD, wr.near_goal(c)).mode == wr.LEFT
+    assert wr.choose(math.radians(-100), wr.FORWARD, wr.near_goal(c)).mode == wr.RIGHT
+    assert wr.choose(math.radians(80), wr.FORWARD, wr.near_goal(c)).mode == wr.FORWARD
+    assert wr.choose(math.radians(100), wr.FORWARD, c).mode == wr.FORWARD  # away from it
+    assert wr.near_goal(wr.Controller(turn_deg=60.0, goal_turn_deg=90.0)).turn_deg == 60.0
+    with pytest.raises(ConfigError, match="goal_turn_deg must be in"):
+        wr.Controller(goal_turn_deg=10.0)  # not above resume_deg
+    with pytest.raises(ConfigError, match="goal_turn_deg"):
+        wr.Controller(goal_turn_deg=math.nan)
+
+
 def test_a_gait_library_with_a_bad_vector_is_one_line_naming_the_entry(tmp_path):
     src = json.loads((Path(wr.__file__).parent.parent / "data" / "walk_gaits" / "nao.json")
                      .read_text())

@@ -86,6 +86,15 @@ def test_jax_controller_decides_as_the_native_one():
         assert wr.MODES[int(got[0])] == want.mode
         assert float(got[1]) == pytest.approx(want.steer, abs=1e-5)
         assert float(got[2]) == pytest.approx(want.step, abs=1e-5)
+    c = wr.Controller(goal_turn_deg=90.0)
+    near_choose = jax.jit(lambda e, m, n: wm._choose_near(e, m, n, c))
+    for _ in range(200):
+        err, mode = float(rng.uniform(-math.pi, math.pi)), int(rng.integers(3))
+        near = bool(rng.integers(2))
+        want = wr.choose(err, wr.MODES[mode], wr.near_goal(c) if near else c)
+        got = near_choose(jnp.float32(err), jnp.int32(mode), jnp.bool_(near))
+        assert wr.MODES[int(got[0])] == want.mode
+        assert float(got[2]) == pytest.approx(want.step, abs=1e-5)
     route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.5, 2.5]])
     ctrl = wr.Controller()
     track = jax.jit(lambda s, p: wm._track(jnp.asarray(route, jnp.float32), s, p, ctrl))

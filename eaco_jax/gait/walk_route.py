@@ -166,6 +166,7 @@ class Controller:
     slow_deg: float = 15.0  # the forward gait's step shortens above this heading error ...
     stop_deg: float = 120.0  # ... to min_step of its length at this error and beyond
     min_step: float = 0.35
+    goal_turn_deg: float = 180.0  # within lookahead of the goal: turn_deg (180: never)
     blend_cycles: float = 0.5
     goal_radius: float = 0.15
 
@@ -175,6 +176,10 @@ class Controller:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"controller {name} must be a finite number > 0, got {v!r}")
+        if not (math.isfinite(self.goal_turn_deg) and self.resume_deg < self.goal_turn_deg
+                <= 180):
+            raise ConfigError(f"controller goal_turn_deg must be in (resume_deg="
+                              f"{self.resume_deg}, 180] (180: never), got {self.goal_turn_deg!r}")
         if self.turn_deg > 180:
             raise ConfigError(f"controller turn_deg must be <= 180 (180: never turn on the "
                               f"spot), got {self.turn_deg}")
@@ -243,6 +248,13 @@ def choose(error: float, mode: str, ctrl: Controller) -> Choice:
     u = (math.degrees(abs(error)) - ctrl.slow_deg) / (ctrl.stop_deg - ctrl.slow_deg)
     step = 1.0 - (1.0 - ctrl.min_step) * min(1.0, max(0.0, u))
     return Choice(FORWARD, steer, step)
+
+
+def near_goal(ctrl: Controller) -> Controller:
+    """The controller within ``lookahead`` of the goal on the last segment: it turns on the
+    spot above ``goal_turn_deg`` (a robot whose steered arc is wider than ``goal_radius``
+    would otherwise circle the goal)."""
+    return dataclasses.replace(ctrl, turn_deg=min(ctrl.turn_deg, ctrl.goal_turn_deg))
 
 
 def gait_params(gaits: WalkGaits, choice: Choice) -> np.ndarray:
@@ -442,10 +454,11 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
         if chunk is None or chunk_pos >= len(chunk):
             yaw = _mean_angle(yaws[-max(1, len(chunk) if chunk is not None else 1):])
             seg, target = track(route, seg, pos, ctrl)
-            if np.linalg.norm(goal - pos) < ctrl.lookahead and seg == len(route) - 2:
+            near = np.linalg.norm(goal - pos) < ctrl.lookahead and seg == len(route) - 2
+            if near:
                 target = goal
             error = wrap(math.atan2(target[1] - pos[1], target[0] - pos[0]) - yaw)
-            choice = choose(error, mode, ctrl)
+            choice = choose(error, mode, near_goal(ctrl) if near else ctrl)
             if k * dt < RAMP_TIME and p_new is not None:
                 choice = last  # no switch during the start-up
             last = choice

@@ -361,6 +361,16 @@ def _choose(error, mode, c: wr.Controller):
     return new, jnp.where(fwd, steer, 0.0), jnp.where(fwd, step, 1.0)
 
 
+def _choose_near(error, mode, near, c: wr.Controller):
+    """:func:`_choose` with :func:`~eaco_jax.gait.walk_route.near_goal`'s controller where
+    ``near`` (within ``lookahead`` of the goal on the last segment)."""
+    out = _choose(error, mode, c)
+    if c.goal_turn_deg >= 180:
+        return out
+    alt = _choose(error, mode, wr.near_goal(c))
+    return tuple(jnp.where(near, a, b) for a, b in zip(alt, out, strict=True))
+
+
 def _track(route, seg, pos, c: wr.Controller):
     """:func:`~eaco_jax.gait.walk_route.track` in JAX."""
     last = route.shape[0] - 2
@@ -690,7 +700,7 @@ def _compiled(st: _Static):
             near = (jnp.linalg.norm(goal - pos) < c.lookahead) & (seg == last_seg)
             target = jnp.where(near, goal, target)
             error = _wrap(jnp.arctan2(target[1] - pos[1], target[0] - pos[0]) - yaw)
-            mode, steer, stp = _choose(error, s["mode"], c)
+            mode, steer, stp = _choose_near(error, s["mode"], near, c)
             hold = (k < ramp_steps) & s["started"]
             mode = jnp.where(hold, s["last_mode"], mode)
             steer = jnp.where(hold, s["last_steer"], steer)

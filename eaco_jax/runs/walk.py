@@ -80,6 +80,8 @@ class WalkSettings:
     stop_deg: float = setting(120.0, "controller: ... to --min-step of its length at this error")
     min_step: float = setting(0.35, "controller: shortest forward step, a fraction of the "
                               "gait's")
+    goal_turn_deg: float = setting(180.0, "controller: within --lookahead of the goal, turn on "
+                                   "the spot above this heading error (180: never)")
     blend_cycles: float = setting(0.5, "controller: step cycles a gait change blends over")
     backend: str = setting("native", "physics: native MuJoCo (one world at a time) or MJX "
                            "(the nominal and every randomised world in one batched call)",
@@ -111,7 +113,8 @@ class WalkSettings:
                           turn_deg=self.turn_deg, resume_deg=self.resume_deg,
                           steer_gain=self.steer_gain, max_steer=self.max_steer,
                           slow_deg=self.slow_deg, stop_deg=self.stop_deg,
-                          min_step=self.min_step, blend_cycles=self.blend_cycles)
+                          min_step=self.min_step, goal_turn_deg=self.goal_turn_deg,
+                          blend_cycles=self.blend_cycles)
 
 
 def planning_scene(scene: Any, clearance: float, ramps: str) -> Any:
