@@ -153,7 +153,8 @@ class Controller:
 
     The defaults were chosen on tuning scenes and selection-stream worlds (claims
     ``walk-controller-selection``; ``walk-steer-tuning-chosen`` for ``steer_gain``;
-    ``walk-spec-stop-deg-120-successes`` for ``stop_deg`` on the motor model), not on the
+    ``walk-spec-stop-deg-120-successes`` for ``stop_deg`` on the motor model;
+    ``walk-spec-goal-turn-60-successes`` for ``goal_turn_deg``), not on the
     scenes and worlds the walk is reported on.
     """
 
@@ -166,7 +167,7 @@ class Controller:
     slow_deg: float = 15.0  # the forward gait's step shortens above this heading error ...
     stop_deg: float = 120.0  # ... to min_step of its length at this error and beyond
     min_step: float = 0.35
-    goal_turn_deg: float = 180.0  # within lookahead of the goal: turn_deg (180: never)
+    goal_turn_deg: float = 60.0  # within lookahead of the goal: turn_deg (180: never)
     blend_cycles: float = 0.5
     goal_radius: float = 0.15
 

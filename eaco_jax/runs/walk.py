@@ -80,7 +80,7 @@ class WalkSettings:
     stop_deg: float = setting(120.0, "controller: ... to --min-step of its length at this error")
     min_step: float = setting(0.35, "controller: shortest forward step, a fraction of the "
                               "gait's")
-    goal_turn_deg: float = setting(180.0, "controller: within --lookahead of the goal, turn on "
+    goal_turn_deg: float = setting(60.0, "controller: within --lookahead of the goal, turn on "
                                    "the spot above this heading error (180: never)")
     blend_cycles: float = setting(0.5, "controller: step cycles a gait change blends over")
     backend: str = setting("native", "physics: native MuJoCo (one world at a time) or MJX "
