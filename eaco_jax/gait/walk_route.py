@@ -177,16 +177,16 @@ class Controller:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"controller {name} must be a finite number > 0, got {v!r}")
-        if not (math.isfinite(self.goal_turn_deg) and self.resume_deg < self.goal_turn_deg
-                <= 180):
-            raise ConfigError(f"controller goal_turn_deg must be in (resume_deg="
-                              f"{self.resume_deg}, 180] (180: never), got {self.goal_turn_deg!r}")
         if self.turn_deg > 180:
             raise ConfigError(f"controller turn_deg must be <= 180 (180: never turn on the "
                               f"spot), got {self.turn_deg}")
         if not 0 <= self.resume_deg < self.turn_deg:
             raise ConfigError(f"controller resume_deg must be in [0, turn_deg={self.turn_deg}),"
                               f" got {self.resume_deg}")
+        if not (math.isfinite(self.goal_turn_deg) and self.resume_deg < self.goal_turn_deg
+                <= 180):
+            raise ConfigError(f"controller goal_turn_deg must be in (resume_deg="
+                              f"{self.resume_deg}, 180] (180: never), got {self.goal_turn_deg!r}")
         if not 0 <= self.slow_deg < self.stop_deg:
             raise ConfigError(f"controller slow_deg must be in [0, stop_deg={self.stop_deg}), "
                               f"got {self.slow_deg}")
