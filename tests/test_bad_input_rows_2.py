@@ -169,8 +169,9 @@ def test_mo_gait_report_names_the_shape_or_the_non_finite_values():
 
 
 def test_every_one_gait_entry_names_the_non_finite_index_not_a_right_shape():
-    """report, simulate and evaluate_trials take one gait: a right-shaped vector with NaN or
-    inf is refused by index, never as "got shape (14,)"."""
+    """report, simulate, evaluate_trials and thermal_walk take one gait: a right-shaped vector
+    with NaN or inf is refused by index, never as "got shape (14,)"."""
+    from eaco_jax.gait.thermal_walk import thermal_walk
     from eaco_jax.gait.validate import evaluate_trials
     from eaco_jax.problems.gait import make_gait_problem
 
@@ -179,7 +180,8 @@ def test_every_one_gait_entry_names_the_non_finite_index_not_a_right_shape():
     bad = np.zeros(14)
     bad[[0, 13]] = [np.inf, np.nan]
     calls = {"simulate": lambda p: plain.simulate(p), "report": constrained.report,
-             "trials": lambda p: evaluate_trials(plain, p, n=1)}
+             "trials": lambda p: evaluate_trials(plain, p, n=1),
+             "thermal": lambda p: thermal_walk(plain, p)}
     for what, call in calls.items():
         lead = "simulate" if what == "simulate" else "a gait"
         with pytest.raises(ea.ProblemError, match=rf"^{lead} needs 14 finite parameters, got NaN "

@@ -46,8 +46,7 @@ def thermal_walk(problem: Any, params: Any, n: int = 0, seed: int = 0, stream: s
     if mm is None:
         raise ValueError(f"robot {spec.name} has no electrical motor data: no thermal walk")
     every = max(1, int(round(sample_s / spec.control_dt)))
-    x = jnp.clip(jnp.asarray(np.asarray(params, np.float32).reshape(1, -1)), problem.lower,
-                 problem.upper)
+    x = problem.gait_row(params)
     controls = problem.controls(x)
     worlds = None
     if n:

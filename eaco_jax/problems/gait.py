@@ -263,10 +263,11 @@ class GaitProblem(Box):
         """Whether the search is constrained (a :class:`ConstrainedGaitProblem`)."""
         return False
 
-    def gait_row(self, params: Any) -> jax.Array:
+    def gait_row(self, params: Any, what: str = "a gait") -> jax.Array:
         """One gait's parameters as a ``(1, dim)`` batch clipped to the search bounds, checked
-        first (:func:`~eaco_jax.gait.walk_engine.gait_vector`: shape and finite values)."""
-        return jnp.clip(jnp.asarray(gait_vector(params, self.dim))[None], self.lower,
+        first (:func:`~eaco_jax.gait.walk_engine.gait_vector`: shape and finite values;
+        ``what`` leads its error line)."""
+        return jnp.clip(jnp.asarray(gait_vector(params, self.dim, what))[None], self.lower,
                         self.upper)
 
     @property
@@ -289,14 +290,13 @@ class GaitProblem(Box):
         ``torso_up`` (T+1, 3), ``controls`` (T, nu) (the commanded targets) and ``qpos``
         (T+1, nq) (the full configuration after each control step, for videos).
         """
-        p = gait_vector(params, self.dim, "simulate")
+        x = self.gait_row(params, "simulate")  # the bounds do not depend on backend or horizon
         if horizon is not None:
             check_horizon(float(horizon), self.spec)
         prob = self if backend is None and horizon is None else self.replace(
             backend=_resolve_backend(backend or self.backend),
             horizon=float(horizon if horizon is not None else self.horizon))
         quality = True  # the actuator envelope, for every robot
-        x = jnp.clip(jnp.asarray(p)[None], prob.lower, prob.upper)
         controls = couple_controls(jax.jit(prob.controls)(x), prob.spec)
         if prob.backend == "mjx":
             run = jax.jit(lambda c: mjx_rollout(c, prob.spec, prob.slope_deg, prob.accuracy,
