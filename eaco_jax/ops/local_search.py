@@ -211,9 +211,11 @@ def _apply_disjoint(
 
 
 def _or_opt_moves(
-    tour: Array, pos: Array, succ: Array, pred: Array, dist: Array, cand: Array, cand_d: Array
+    tour: Array, pos: Array, succ: Array, pred: Array, dist: Array, cand: Array, cand_d: Array,
+    at: Array | None = None,
 ) -> tuple[Array, ...]:
-    """The best Or-opt move at every city ``a``: (gain, lo, hi, kind, span, rev), one per city.
+    """The best Or-opt move at every city ``a`` (or at the cities ``at`` only): (gain, lo, hi,
+    kind, span, rev), one per city.
 
     The segments of 1..:data:`OR_OPT_MAX` cities with ``a`` at one end are moved next to a
     candidate ``c2`` of ``a`` (between ``c2`` and its successor or predecessor, in the
@@ -225,15 +227,20 @@ def _or_opt_moves(
     left out (gain ``-inf``).
     """
     n, k = cand.shape
-    cities = jnp.arange(n, dtype=jnp.int32)
+    if at is not None:  # the rows of the cities ``at`` only
+        cand, cand_d, pos_a = cand[at], cand_d[at], pos[at]
+    else:
+        pos_a = pos
+    rows = pos_a.shape[0]
+    cities = jnp.arange(rows, dtype=jnp.int32)
     lens = jnp.array([1, 2, 3, 2, 3], jnp.int32)[: 2 * OR_OPT_MAX - 1]
     back = jnp.arange(lens.shape[0]) >= OR_OPT_MAX
-    sa = jnp.where(back, pos[:, None] - lens + 1, pos[:, None]) % n  # (n, S) segment start
+    sa = jnp.where(back, pos_a[:, None] - lens + 1, pos_a[:, None]) % n  # (rows, S) start
     first, last = tour[sa], tour[(sa + lens - 1) % n]
     pp, ss = tour[(sa - 1) % n], tour[(sa + lens) % n]
-    g_rem = dist[pp, first] + dist[last, ss] - dist[pp, ss]  # (n, S)
+    g_rem = dist[pp, first] + dist[last, ss] - dist[pp, ss]  # (rows, S)
     other = jnp.where(back, first, last)[:, :, None]  # the segment's end away from a
-    q = (pos[cand][:, None, :] - sa[:, :, None]) % n  # (n, S, k) c2 relative to the segment
+    q = (pos[cand][:, None, :] - sa[:, :, None]) % n  # (rows, S, k): c2 from the segment
     in_seg = q < lens[None, :, None]
     sc, pc = succ[cand][:, None, :], pred[cand][:, None, :]
     dc = cand_d[:, None, :]
@@ -244,8 +251,8 @@ def _or_opt_moves(
     ok_before = ~in_seg & (q != lens[None, :, None])  # and so is c2 == ss
     g = jnp.stack([jnp.where(ok_after, g_rem[..., None] + g_after, -jnp.inf),
                    jnp.where(ok_before, g_rem[..., None] + g_before, -jnp.inf)], axis=-1)
-    flat = jnp.argmax(g.reshape(n, -1), axis=1).astype(jnp.int32)
-    gain = jnp.take_along_axis(g.reshape(n, -1), flat[:, None], axis=1)[:, 0]
+    flat = jnp.argmax(g.reshape(rows, -1), axis=1).astype(jnp.int32)
+    gain = jnp.take_along_axis(g.reshape(rows, -1), flat[:, None], axis=1)[:, 0]
     si, hc, side = flat // (2 * k), (flat // 2) % k, flat % 2
     span, start = lens[si], sa[cities, si]
     t = q[cities, si, hc] - side  # insert after relative position t, span <= t <= n - 2
@@ -260,6 +267,95 @@ def _or_opt_moves(
     return gain, lo, hi, kind, span, rev
 
 
+def _two_opt_moves(pos: Array, succ: Array, pred: Array, dist: Array, cand: Array,
+                   cand_d: Array, at: Array | None = None) -> tuple[Array, Array, Array]:
+    """The best 2-opt move at every city ``a`` (or at the cities ``at`` only): (gain, lo, hi),
+    the move reversing positions ``[lo, hi]`` (never wrapping the array's end), gain
+    ``-inf`` where no move improves."""
+    n = pos.shape[0]
+    a = jnp.arange(n, dtype=jnp.int32) if at is None else at
+    cand, cand_d = (cand, cand_d) if at is None else (cand[at], cand_d[at])
+    rows = jnp.arange(a.shape[0])
+    d_succ = dist[jnp.arange(n, dtype=jnp.int32), succ]  # d(x, succ x) of every city: O(n)
+    sa, pa = succ[a], pred[a]
+    sc, pc = succ[cand], pred[cand]
+    degenerate = (cand == sa[:, None]) | (cand == pa[:, None])
+    g_s = d_succ[a][:, None] + d_succ[cand] - cand_d - dist[sa[:, None], sc]
+    g_p = d_succ[pa][:, None] + d_succ[pc] - cand_d - dist[pa[:, None], pc]
+    g_s = jnp.where(degenerate, -jnp.inf, g_s)
+    g_p = jnp.where(degenerate, -jnp.inf, g_p)
+    js, jp = jnp.argmax(g_s, axis=1), jnp.argmax(g_p, axis=1)
+    gs = jnp.take_along_axis(g_s, js[:, None], axis=1)[:, 0]
+    gp = jnp.take_along_axis(g_p, jp[:, None], axis=1)[:, 0]
+    use_pred = gp > gs
+    gain = jnp.maximum(gs, gp)
+    c = jnp.where(use_pred, cand[rows, jp], cand[rows, js])
+    i, j = pos[a], pos[c]
+    lo, hi = jnp.minimum(i, j), jnp.maximum(i, j)
+    # successor move reverses (lo, hi]; predecessor move reverses [lo, hi)
+    lo = jnp.where(use_pred, lo, lo + 1)
+    hi = jnp.where(use_pred, hi - 1, hi)
+    # reversing [0, hi] == reversing the complement [hi + 1, n - 1]: no wrap-around arcs
+    wrap = lo == 0
+    lo, hi = jnp.where(wrap, hi + 1, lo), jnp.where(wrap, n - 1, hi)
+    return jnp.where(gain > 0, gain, -jnp.inf), lo, hi
+
+
+def _focused_one(
+    tour: Array, pos0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
+    per_step: int, or_opt: bool, acceptance: str, active0: Array, width: int,
+) -> tuple[Array, Array, Array]:
+    """The batched search of one tour from the cities ``active0`` only (don't-look bits, as
+    Focused ACO searches an ant that changed a few edges of the best tour): each step
+    evaluates the moves of at most ``width`` active cities (the first in index order), not of
+    all ``n``; applies the best disjoint improving ones as :func:`_two_opt_one` does; clears
+    the bit of every evaluated city without an improving move and sets the bits of both ends
+    of every edge the step removed. It ends when no bit is set (or after ``max_moves``): a
+    tour that is a local optimum except near a few changed edges costs O(width k) a step
+    instead of O(n k), plus the O(n) rewrite of the tour."""
+    n = tour.shape[0]
+    slots = jnp.arange(width)
+
+    def body(carry):
+        tour, pos, active, moves, steps = carry
+        succ = tour[(pos + 1) % n]
+        pred = tour[(pos - 1) % n]
+        at = jnp.nonzero(active, size=width, fill_value=0)[0].astype(jnp.int32)
+        valid = slots < jnp.sum(active)
+        gain, lo, hi = _two_opt_moves(pos, succ, pred, dist, cand, cand_d, at)
+        gain = jnp.where(valid, gain, -jnp.inf)
+        found = gain > 0
+        if or_opt:
+            og, olo, ohi, okind, ospan, orev = _or_opt_moves(tour, pos, succ, pred, dist, cand,
+                                                             cand_d, at)
+            og = jnp.where(valid & (og > 0), og, -jnp.inf)
+            found = found | (og > 0)
+            tour, pos, applied = _apply_disjoint(
+                tour, pos, jnp.concatenate([gain, og]), jnp.concatenate([lo, olo]),
+                jnp.concatenate([hi, ohi]), per_step, max_moves - moves,
+                kind=jnp.concatenate([jnp.full(width, REVERSE, jnp.int32), okind]),
+                span=jnp.concatenate([jnp.zeros(width, jnp.int32), ospan]),
+                rev=jnp.concatenate([jnp.zeros(width, bool), orev]), acceptance=acceptance)
+        else:
+            tour, pos, applied = _apply_disjoint(tour, pos, gain, lo, hi, per_step,
+                                                 max_moves - moves, acceptance=acceptance)
+        # evaluated, nothing to gain: bit cleared (the padding slots touch nothing)
+        active = active.at[jnp.where(valid & ~found, at, n)].set(False, mode="drop")
+        # both ends of every removed edge: the cities whose pair of tour neighbours changed
+        new_s, new_p = tour[(pos + 1) % n], tour[(pos - 1) % n]
+        same = ((new_s == succ) & (new_p == pred)) | ((new_s == pred) & (new_p == succ))
+        return tour, pos, active | ~same, moves + applied, steps + 1
+
+    def cond(carry):
+        _, _, active, moves, _ = carry
+        return jnp.any(active) & (moves < max_moves)
+
+    zero = jnp.int32(0)
+    tour, _, _, moves, steps = jax.lax.while_loop(
+        cond, body, (tour, pos0, jnp.asarray(active0, bool), zero, zero))
+    return tour, moves, steps
+
+
 def _two_opt_one(
     tour: Array,
     dist: Array,
@@ -269,40 +365,23 @@ def _two_opt_one(
     per_step: int,
     or_opt: bool = False,
     acceptance: str = "rounds",
+    active0: Array | None = None,
+    width: int = 128,
 ) -> tuple[Array, Array, Array]:
     """2-opt (and Or-opt) of one tour with candidate lists (see module docstring):
-    (tour, moves, steps)."""
+    (tour, moves, steps). With ``active0`` the search is focused (:func:`_focused_one`)."""
     n = tour.shape[0]
     cities = jnp.arange(n, dtype=jnp.int32)
     pos0 = jnp.zeros(n, jnp.int32).at[tour].set(cities)
+    if active0 is not None:
+        return _focused_one(tour, pos0, dist, cand, cand_d, max_moves, per_step, or_opt,
+                            acceptance, active0, width)
 
     def body(carry):
         tour, pos, moves, steps, _ = carry
         succ = tour[(pos + 1) % n]  # successor of each city
         pred = tour[(pos - 1) % n]
-        d_succ = dist[cities, succ]  # d(a, succ a)
-        d_pred = d_succ[pred]  # d(pred a, a)
-        degenerate = (cand == succ[:, None]) | (cand == pred[:, None])
-        g_s = d_succ[:, None] + d_succ[cand] - cand_d - dist[succ[:, None], succ[cand]]
-        g_p = d_pred[:, None] + d_pred[cand] - cand_d - dist[pred[:, None], pred[cand]]
-        g_s = jnp.where(degenerate, -jnp.inf, g_s)
-        g_p = jnp.where(degenerate, -jnp.inf, g_p)
-        # best move per city a
-        js, jp = jnp.argmax(g_s, axis=1), jnp.argmax(g_p, axis=1)
-        gs = jnp.take_along_axis(g_s, js[:, None], axis=1)[:, 0]
-        gp = jnp.take_along_axis(g_p, jp[:, None], axis=1)[:, 0]
-        use_pred = gp > gs
-        gain = jnp.maximum(gs, gp)
-        c = jnp.where(use_pred, cand[cities, jp], cand[cities, js])
-        i, j = pos, pos[c]
-        lo, hi = jnp.minimum(i, j), jnp.maximum(i, j)
-        # successor move reverses (lo, hi]; predecessor move reverses [lo, hi)
-        lo = jnp.where(use_pred, lo, lo + 1)
-        hi = jnp.where(use_pred, hi - 1, hi)
-        # reversing [0, hi] == reversing the complement [hi + 1, n - 1]: no wrap-around arcs
-        wrap = lo == 0
-        lo, hi = jnp.where(wrap, hi + 1, lo), jnp.where(wrap, n - 1, hi)
-        gain = jnp.where(gain > 0, gain, -jnp.inf)
+        gain, lo, hi = _two_opt_moves(pos, succ, pred, dist, cand, cand_d)
         if or_opt:  # each city's best 2-opt move and its best Or-opt move compete
             og, olo, ohi, okind, ospan, orev = _or_opt_moves(tour, pos, succ, pred, dist, cand,
                                                              cand_d)
@@ -330,7 +409,7 @@ def _two_opt_one(
 
 
 @partial(jax.jit, static_argnames=("max_moves", "return_moves", "moves_per_step", "or_opt",
-                                   "return_steps", "acceptance"))
+                                   "return_steps", "acceptance", "focus_width"))
 def two_opt(
     tours: Array,
     dist: Array,
@@ -341,6 +420,8 @@ def two_opt(
     or_opt: bool = False,
     return_steps: bool = False,
     acceptance: str = "rounds",
+    active: Array | None = None,
+    focus_width: int = 128,
 ) -> Array | tuple[Array, Array] | tuple[Array, Array, Array]:
     """2-opt (and Or-opt) local search of every tour in ``tours`` ``(m, n)`` to a local optimum.
 
@@ -358,6 +439,10 @@ def two_opt(
         benchmark of ``moves_per_step`` counts).
       acceptance: how a step accepts its disjoint moves, :data:`ACCEPTANCES` (the same tours
         either way; "sequential" is the one-by-one reference, kept to time against).
+      active: ``(m, n)`` bool, search from these cities only, with don't-look bits
+        (:func:`_focused_one`; Focused ACO: the ends of the edges an ant changed,
+        :func:`changed_cities`). None: every city, every step.
+      focus_width: with ``active``, the most cities a step evaluates.
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
@@ -368,10 +453,22 @@ def two_opt(
     _check(tours, dist, neighbors, or_opt)
     cand = _candidates(dist, neighbors)
     cand_d = dist[jnp.arange(dist.shape[0])[:, None], cand]
-    mm = _default_max_moves(tours.shape[1], max_moves)
-    out, moves, steps = jax.vmap(
-        lambda t: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,
-                               acceptance))(tours)
+    m, n = tours.shape
+    mm = _default_max_moves(n, max_moves)
+    if active is None:
+        out, moves, steps = jax.vmap(
+            lambda t: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,
+                                   acceptance))(tours)
+    else:
+        active = jnp.asarray(active, bool)
+        if active.shape != (m, n):
+            raise ValueError(f"active must have the tours' shape {(m, n)}, got {active.shape}")
+        if focus_width < 1:
+            raise ConfigError(f"focus_width must be >= 1, got {focus_width}")
+        width = min(int(focus_width), n)
+        out, moves, steps = jax.vmap(
+            lambda t, a: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,
+                                      acceptance, a, width))(tours, active)
     if return_steps:
         return out, moves, steps
     return (out, moves) if return_moves else out

@@ -183,12 +183,17 @@ class TspSettings:
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
                                         "tour, then follows it (default: full construction)")
+    ls_focus_width: int | None = setting(None, "sparse path with --max-new-edges: the "
+                                         "batched local search (2opt, or-2opt) starts from "
+                                         "the ends of the edges each ant changed, evaluating "
+                                         "at most this many cities a step (default: every "
+                                         "city, every step)")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
         check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
-                       "ls_neighbors", "neighbors", "max_new_edges")
+                       "ls_neighbors", "neighbors", "max_new_edges", "ls_focus_width")
         if self.clock == "call" and self.max_seconds is None:
             raise ConfigError("clock='call' counts the --max-seconds budget from the call; "
                               "give --max-seconds S (or leave --clock run)")
@@ -231,6 +236,7 @@ def build(s: TspSettings) -> Built:
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges,
+                         ls_focus_width=s.ls_focus_width,
                          construction=(s.construction if s.construction.startswith("moves")
                                        else "ants"),
                          construction_fallback=("auto" if s.construction.startswith("moves")

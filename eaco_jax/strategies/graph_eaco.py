@@ -255,6 +255,11 @@ class GraphEACO(Strategy):
     #: ``construction_moves``: a loop over the moves, not over the n cities) or
     #: "moves-or3opt" (the same with segment-insertion moves, three new edges each)
     construction: str = "ants"
+    #: sparse problems with ``max_new_edges``: the batched searches ("2opt", "or-2opt") start
+    #: from the ends of the edges an ant changed, with don't-look bits, evaluating at most this
+    #: many cities a step (None: every city, every step; the don't-look-bit searches always
+    #: start from those cities)
+    ls_focus_width: int | None = None
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -282,6 +287,8 @@ class GraphEACO(Strategy):
                               "moves per ant: give --max-new-edges N (max_new_edges=N)")
         if self.ls_moves_per_step < 1:
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
+        if self.ls_focus_width is not None and self.ls_focus_width < 1:
+            raise ConfigError(f"ls_focus_width must be >= 1 or None, got {self.ls_focus_width}")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
@@ -561,7 +568,8 @@ class GraphEACO(Strategy):
         the latter plus Or-opt; these two run as native code on a CPU, with the same tours),
         on every ant or on the ``ls_best_k`` shortest tours only. ``focus`` ``(m, n)``: the
         don't-look-bit searches start from these cities only (Focused ACO's construction:
-        the ends of the edges an ant changed); the batched searches scan every city anyway."""
+        the ends of the edges an ant changed); the batched searches too when
+        ``ls_focus_width`` is set, else they scan every city."""
         if self.local_search == "none":
             return tours
         from eaco_jax.ops import local_search
@@ -570,17 +578,19 @@ class GraphEACO(Strategy):
         neighbors = problem.neighbors
         if self.ls_neighbors is not None and neighbors is not None:
             neighbors = neighbors[:, : self.ls_neighbors]
-        if self.local_search in ("2opt", "or-2opt"):
-            def improve(t):
+        batched = self.local_search in ("2opt", "or-2opt")
+        if batched:
+            def improve(t, a=None):
                 return local_search.two_opt(t, dist, neighbors, self.max_ls_moves,
                                             moves_per_step=self.ls_moves_per_step,
-                                            or_opt=self.local_search == "or-2opt")
+                                            or_opt=self.local_search == "or-2opt", active=a,
+                                            focus_width=self.ls_focus_width or 1)
         else:
             def improve(t, a=None):
                 return local_search.dlb_local_search(
                     key, t, dist, neighbors, self.max_ls_moves,
                     or_opt=self.local_search == "2opt+oropt", active=a)
-        extra = () if focus is None or self.local_search in ("2opt", "or-2opt") else (focus,)
+        extra = () if focus is None or (batched and self.ls_focus_width is None) else (focus,)
         if self.ls_best_k is None or self.ls_best_k >= tours.shape[0]:
             return improve(tours, *extra)
         return local_search.best_k(tours, tour_lengths(dist, tours), self.ls_best_k, improve,

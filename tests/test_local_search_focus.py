@@ -1,0 +1,92 @@
+"""The focused batched search (``two_opt(..., active=)``): it starts from the given cities only
+and repairs a local optimum that a few changed edges broke, as Focused ACO's ants need."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from eaco_jax.ops.local_search import changed_cities, two_opt
+
+
+def _instance(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    xy = rng.integers(0, 10_000, (n, 2)).astype(np.float64)
+    d = np.rint(np.sqrt(((xy[:, None] - xy[None]) ** 2).sum(-1))).astype(np.float32)
+    nb = np.argsort(np.where(np.eye(n, dtype=bool), np.inf, d), 1)[:, :10].astype(np.int32)
+    return d, nb
+
+
+def _length(d: np.ndarray, tours) -> np.ndarray:
+    t = np.asarray(tours)
+    return d[t, np.roll(t, -1, axis=1)].sum(axis=1)
+
+
+@pytest.fixture(scope="module")
+def broken():
+    """Local optima of the candidate neighbourhood, each broken by six segment reversals."""
+    n, m = 300, 3
+    d, nb = _instance(n)
+    rng = np.random.default_rng(1)
+    start = np.stack([rng.permutation(n) for _ in range(m)]).astype(np.int32)
+    opt = np.asarray(two_opt(start, d, nb, or_opt=True))
+    pert = opt.copy()
+    for row in pert:
+        for _ in range(6):
+            a, b = sorted(rng.choice(n, 2, replace=False))
+            row[a:b] = row[a:b][::-1].copy()
+    focus = np.stack([np.asarray(changed_cities(pert[i:i + 1], opt[i]))[0] for i in range(m)])
+    return d, nb, opt, pert, focus
+
+
+@pytest.mark.parametrize("or_opt", [False, True])
+def test_focused_search_repairs_the_broken_edges_to_a_local_optimum(broken, or_opt):
+    d, nb, _, pert, focus = broken
+    assert 0 < focus.sum(axis=1).max() <= 24  # a few cities, not n
+    out, moves, steps = two_opt(pert, d, nb, or_opt=or_opt, active=focus, focus_width=8,
+                                return_steps=True)
+    out = np.asarray(out)
+    assert all(sorted(t) == list(range(d.shape[0])) for t in out)
+    assert np.all(_length(d, out) < _length(d, pert))
+    assert np.all(np.asarray(steps) > 1)  # width 8 < the active cities: several steps
+    # nothing left for the unfocused search to find: the repair reached a local optimum
+    _, left = two_opt(out, d, nb, or_opt=or_opt, return_moves=True)
+    assert np.all(np.asarray(left) == 0)
+
+
+def test_focused_search_with_no_active_city_leaves_the_tours_alone(broken):
+    d, nb, _, pert, focus = broken
+    out = two_opt(pert, d, nb, or_opt=True, active=np.zeros_like(focus))
+    np.testing.assert_array_equal(np.asarray(out), pert)
+
+
+def test_focused_search_from_every_city_matches_the_full_search_closely(broken):
+    d, nb, _, pert, _ = broken
+    n = d.shape[0]
+    rng = np.random.default_rng(2)
+    tours = np.stack([rng.permutation(n) for _ in range(3)]).astype(np.int32)
+    full = _length(d, two_opt(tours, d, nb, or_opt=True))
+    focused = _length(d, two_opt(tours, d, nb, or_opt=True, active=np.ones_like(tours, bool),
+                                 focus_width=n))
+    assert np.all(focused < _length(d, tours))
+    assert abs(focused.mean() / full.mean() - 1) < 0.03
+
+
+def test_active_of_the_wrong_shape_is_refused(broken):
+    d, nb, _, pert, focus = broken
+    with pytest.raises(ValueError, match="active must have the tours' shape"):
+        two_opt(pert, d, nb, active=focus[:, :10])
+
+
+def test_a_move_wakes_the_ends_of_the_edges_it_removed(broken):
+    """From one active city of a random tour the search spreads along the edges its moves
+    change: far more moves than that one city alone could make."""
+    d, nb, _, _, _ = broken
+    n = d.shape[0]
+    tours = np.random.default_rng(3).permutation(n).astype(np.int32)[None]
+    one = np.zeros((1, n), bool)
+    one[0, tours[0, 0]] = True
+    out, moves = two_opt(tours, d, nb, or_opt=True, active=one, focus_width=16,
+                         return_moves=True)
+    assert int(np.asarray(moves)[0]) > n // 2
+    assert _length(d, out)[0] < 0.5 * _length(d, tours)[0]
