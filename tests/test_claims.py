@@ -79,10 +79,12 @@ def test_the_number_rule():
 
 
 def test_every_colony_default_row_names_a_claim():
-    from eaco_jax.runs.tsp import COLONY_DEFAULTS
+    from eaco_jax.runs.tsp import COLONY_DEFAULTS, LS_FOCUS_CLAIM, SPARSE_DEFAULTS
 
     ids = {c.id for c in CLAIMS}
     assert COLONY_DEFAULTS and all(row.claim in ids for row in COLONY_DEFAULTS)
+    assert SPARSE_DEFAULTS and all(row.claim in ids for row in SPARSE_DEFAULTS)
+    assert LS_FOCUS_CLAIM in ids
 
 
 def test_every_measured_default_names_a_claim():

@@ -213,3 +213,48 @@ def read_settings(ck):
     from eaco_jax.driver.checkpoint import read_meta
 
     return read_meta(ck)["run_info"]["settings"]
+
+
+def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypatch):
+    """A sparse run left on --construction auto without --max-new-edges gets its backend's
+    SPARSE_DEFAULTS row (on a GPU: 32 new edges as moves) and the focused search
+    (LS_FOCUS_WIDTH); a CPU has no row; explicit settings win; 0 turns the focus off; the
+    stored settings pin what resolved, so a resume on another backend builds the same colony."""
+    import jax
+
+    from eaco_jax.driver.minimize import Checkpointing
+    from eaco_jax.runs import tsp
+
+    def strategy(**kw):
+        return tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2, **kw)).strategy
+
+    st = strategy()  # this machine: a CPU, no row
+    assert (st.max_new_edges, st.construction, st.ls_focus_width) == (None, "ants", None)
+    st = strategy(max_new_edges=8, local_search="or-2opt")
+    assert (st.max_new_edges, st.ls_focus_width) == (8, tsp.LS_FOCUS_WIDTH)
+    assert strategy(max_new_edges=8, ls_focus_width=0).ls_focus_width is None
+    assert strategy(max_new_edges=8, ls_focus_width=16).ls_focus_width == 16
+    built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))
+    ck = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
+    pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
+    assert (pinned["max_new_edges"], pinned["construction"], pinned["ls_focus_width"]) == (
+        None, "scan", 0)
+
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    row = tsp.sparse_defaults("gpu")
+    st = strategy()
+    assert (st.max_new_edges, st.construction, st.ls_focus_width) == (
+        row.max_new_edges, row.construction, tsp.LS_FOCUS_WIDTH)
+    st = strategy(construction="scan")  # an explicit construction: no row
+    assert (st.max_new_edges, st.construction) == (None, "ants")
+    st = tsp.build(tsp.TspSettings("eil51", iterations=2)).strategy  # dense: no row
+    assert st.max_new_edges is None
+    built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))
+    pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
+    assert (pinned["max_new_edges"], pinned["construction"], pinned["ls_focus_width"]) == (
+        32, "moves", tsp.LS_FOCUS_WIDTH)
+    monkeypatch.undo()
+    st = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2,
+                                   **{k: pinned[k] for k in ("max_new_edges", "construction",
+                                                             "ls_focus_width")})).strategy
+    assert (st.max_new_edges, st.construction, st.ls_focus_width) == (32, "moves", 128)

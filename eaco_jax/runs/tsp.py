@@ -83,6 +83,35 @@ COLONY_DEFAULTS: tuple[ColonyRow, ...] = (
 )
 
 
+@dataclasses.dataclass(frozen=True)
+class SparseRow:
+    """What a sparse-path run on ``backend`` ("cpu", or "gpu" for any accelerator) resolves
+    ``--max-new-edges`` (left out) and ``--construction auto`` to, named by the claim whose
+    measurement chose it."""
+
+    backend: str
+    max_new_edges: int
+    construction: str
+    claim: str
+
+
+#: the sparse path's focused construction by backend (a backend without a row builds full
+#: tours): on a GPU, 32 new edges as moves (best of four, claim tsp-10k-h100-moves-32-over-bhh)
+SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
+    SparseRow("gpu", 32, "moves", "tsp-10k-h100-moves-32-over-bhh"),
+)
+#: cities a step of the focused batched search evaluates when ``--ls-focus-width`` is left out
+#: and ants change a bounded number of edges (:data:`LS_FOCUS_CLAIM`); 0 turns the focus off
+LS_FOCUS_WIDTH = 128
+LS_FOCUS_CLAIM = "tsp-10k-h100-select-focus-128-over-bhh"
+
+
+def sparse_defaults(backend: str) -> SparseRow | None:
+    """The :data:`SPARSE_DEFAULTS` row of ``backend`` (None: full construction)."""
+    kind = "cpu" if backend == "cpu" else "gpu"
+    return next((r for r in SPARSE_DEFAULTS if r.backend == kind), None)
+
+
 def _best(k: int | None) -> str:
     return "every tour" if k is None else f"the {k} best"
 
@@ -182,18 +211,25 @@ class TspSettings:
                                 choices=("auto", "kernel", "scan", "moves", "moves-or3opt"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
-                                        "tour, then follows it (default: full construction)")
-    ls_focus_width: int | None = setting(None, "sparse path with --max-new-edges: the "
-                                         "batched local search (2opt, or-2opt) starts from "
-                                         "the ends of the edges each ant changed, evaluating "
-                                         "at most this many cities a step (default: every "
-                                         "city, every step)")
+                                        "tour, then follows it (default with --construction "
+                                        "auto: " + "; ".join(
+                                            f"{r.max_new_edges} as {r.construction} on a "
+                                            f"{r.backend.upper()}" for r in SPARSE_DEFAULTS)
+                                        + "; full construction elsewhere)")
+    ls_focus_width: int | None = setting(None, "with --max-new-edges: the batched local "
+                                         "search (2opt, or-2opt) starts from the ends of the "
+                                         "edges each ant changed, evaluating at most this "
+                                         "many cities a step; 0: every city, every step "
+                                         f"(default {LS_FOCUS_WIDTH})")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
         check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
-                       "ls_neighbors", "neighbors", "max_new_edges", "ls_focus_width")
+                       "ls_neighbors", "neighbors", "max_new_edges")
+        if self.ls_focus_width is not None and self.ls_focus_width < 0:
+            raise ConfigError(f"ls_focus_width must be >= 0 (0: no focus), got "
+                              f"{self.ls_focus_width}; e.g. --ls-focus-width 128")
         if self.clock == "call" and self.max_seconds is None:
             raise ConfigError("clock='call' counts the --max-seconds budget from the call; "
                               "give --max-seconds S (or leave --clock run)")
@@ -233,15 +269,20 @@ def build(s: TspSettings) -> Built:
     local_search = auto.local_search if s.local_search == "auto" else s.local_search
     ls_best_k = auto.ls_best_k if s.ls_best_k is None else int(s.ls_best_k)
     preset = auto.preset if s.preset == "auto" else s.preset
+    max_new_edges, construction = s.max_new_edges, s.construction
+    row = sparse_defaults(jax.default_backend()) if is_sparse(problem) else None
+    if row is not None and max_new_edges is None and construction == "auto":
+        max_new_edges, construction = row.max_new_edges, row.construction
+    focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
-                         mutation=s.mutation, preset=preset, max_new_edges=s.max_new_edges,
-                         ls_focus_width=s.ls_focus_width,
-                         construction=(s.construction if s.construction.startswith("moves")
+                         mutation=s.mutation, preset=preset, max_new_edges=max_new_edges,
+                         ls_focus_width=(focus or None) if max_new_edges is not None else None,
+                         construction=(construction if construction.startswith("moves")
                                        else "ants"),
-                         construction_fallback=("auto" if s.construction.startswith("moves")
-                                                else {"scan": "lazy"}.get(s.construction,
-                                                                          s.construction)))
+                         construction_fallback=("auto" if construction.startswith("moves")
+                                                else {"scan": "lazy"}.get(construction,
+                                                                          construction)))
     params = params_from(strategy, problem, s.params)
     # time alone: the sparse path's iterations take seconds, so the clock is read after each
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)
@@ -253,14 +294,32 @@ def build(s: TspSettings) -> Built:
 def with_resolved_settings(checkpointing: Any, built: Built) -> Any:
     """The checkpointing with the colony that ``auto`` resolved to in its stored settings, so
     that ``eaco resume`` rebuilds this colony on any backend (not the resuming backend's)."""
+    from eaco_jax.problems.tsp_sparse import is_sparse
+
     info = getattr(checkpointing, "run_info", None)
     if not info or not isinstance(info.get("settings"), dict):
         return checkpointing
     st = built.strategy
     settings = {**info["settings"], "ants": int(st.num_ants), "local_search": st.local_search,
                 "ls_best_k": st.ls_best_k, "ls_neighbors": st.ls_neighbors,
-                "preset": st.preset}
+                "preset": st.preset,
+                **focused_settings(st, info["settings"].get("construction", "auto"),
+                                   is_sparse(built.problem))}
     return dataclasses.replace(checkpointing, run_info={**info, "settings": settings})
+
+
+def focused_settings(st: Any, given: str, sparse: bool) -> dict[str, Any]:
+    """The focused construction and search a strategy runs, as the settings that rebuild it
+    on any backend: ``max_new_edges``, ``construction`` (the moves it builds with; for full
+    tours the ``given`` setting, with a sparse run's "auto" pinned to "scan" so that no
+    backend's :data:`SPARSE_DEFAULTS` row applies on resume) and ``ls_focus_width`` (0: no
+    focus)."""
+    if st.construction.startswith("moves"):
+        construction = st.construction
+    else:
+        construction = "scan" if sparse and given == "auto" else given
+    return {"max_new_edges": st.max_new_edges, "construction": construction,
+            "ls_focus_width": st.ls_focus_width or 0}
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
@@ -328,6 +387,7 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None,
         "ls_best_k": built.strategy.ls_best_k,
         "ls_neighbors": built.strategy.ls_neighbors,
         "preset": built.strategy.preset,
+        **focused_settings(built.strategy, s.construction, is_sparse(problem)),
         "best_length": length,
         "tour_from": tour_from,
         "optimum": problem.optimum,
