@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import eaco_jax as ea
 from eaco_jax.ops import pheromone
 from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
 from eaco_jax.ops.diversity import edge_diversity
@@ -196,6 +197,12 @@ def test_local_searches_on_coordinate_distances_equal_the_matrix_ones():
     a = local_search.two_opt(tours, dense.dist, dense.neighbors, or_opt=True)
     b = local_search.two_opt(tours, sparse.dist, sparse.neighbors, or_opt=True)
     np.testing.assert_array_equal(a, b)
+    active = jnp.asarray(rng.random((3, 100)) < 0.2)  # the focused search too
+    a = local_search.two_opt(tours, dense.dist, dense.neighbors, or_opt=True, active=active,
+                             focus_width=8)
+    b = local_search.two_opt(tours, sparse.dist, sparse.neighbors, or_opt=True, active=active,
+                             focus_width=8)
+    np.testing.assert_array_equal(a, b)
     key = jax.random.key(0)
     a = local_search.dlb_local_search(key, tours, dense.dist, dense.neighbors, or_opt=True,
                                       impl="native")
@@ -343,3 +350,32 @@ def test_time_alone_reads_the_clock_after_every_sparse_iteration(tmp_path):
     dense = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="off", max_seconds=5.0))
     assert sparse.budget["chunk_size"] == 1 and dense.budget["chunk_size"] == 15
     assert sparse.budget["max_seconds"] == 5.0
+
+
+def test_a_focused_colony_searches_from_the_changed_edges(monkeypatch):
+    """GraphEACO with ``ls_focus_width`` hands the batched search the ends of the edges each
+    ant changed (``active``); without it the search gets none."""
+    from eaco_jax.ops import local_search
+
+    seen = []
+    real = local_search.two_opt
+
+    def spy(*args, **kw):
+        seen.append(kw.get("active"))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(local_search, "two_opt", spy)
+    rng = np.random.default_rng(11)
+    p = SparseTSP.from_coords(rng.integers(0, 100_000, (300, 2)), neighbors=8)
+    for width in (16, None):
+        seen.clear()
+        st = GraphEACO(num_ants=4, local_search="or-2opt", max_new_edges=4,
+                       construction="moves", ls_focus_width=width, seed_tour=True)
+        res = ea.minimize(p, st, seed=0, iterations=2)
+        tour = np.asarray(res.best_solution)
+        assert sorted(tour) == list(range(300))
+        active = [a for a in seen if a is not None]
+        if width is None:
+            assert seen and not active
+        else:  # one (ants, n) mask of changed cities per traced search
+            assert active and active[-1].shape == (4, 300)
