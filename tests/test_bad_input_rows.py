@@ -101,6 +101,8 @@ def test_interrupt_lines_say_what_was_kept(tmp_path):
     (("tsp", "eil51", "--construction", "moves", "--max-new-edges", "4", "--iterations", "2",
       "--quiet"), "construction='moves' needs the sparse path (no distance matrix): pass "
      "--sparse on to eaco tsp"),
+    (("tsp", "eil51", "--chunk-seconds", "0"),
+     "chunk_seconds must be a finite number > 0, got 0.0; e.g. --chunk-seconds 0.2"),
     (("tsp", "eil51", "--ls-focus-width", "-1"),
      "ls_focus_width must be >= 0 (0: no focus), got -1; e.g. --ls-focus-width 128"),
     (("walk", "nosuch.json"), "is not a file; give a scene JSON file, 'default' or "

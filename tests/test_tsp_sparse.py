@@ -350,6 +350,14 @@ def test_time_alone_reads_the_clock_after_every_sparse_iteration(tmp_path):
     dense = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="off", max_seconds=5.0))
     assert sparse.budget["chunk_size"] == 1 and dense.budget["chunk_size"] == 15
     assert sparse.budget["max_seconds"] == 5.0
+    assert "chunk_seconds" not in sparse.budget
+    paced = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="on", max_seconds=5.0,
+                                              chunk_seconds=0.2))
+    assert (paced.budget["chunk_size"], paced.budget["chunk_seconds"]) == (
+        run_tsp.PACED_CHUNK, 0.2)
+    fixed = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="on", iterations=30,
+                                              chunk_seconds=0.2))  # not time alone: as given
+    assert "chunk_seconds" not in fixed.budget
 
 
 def test_a_focused_colony_searches_from_the_changed_edges(monkeypatch):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -57,9 +58,9 @@ from eaco_jax.driver.rows import (  # noqa: F401  (re-exported)
     resolve_iterations,
     stack_params,
 )
-from eaco_jax.driver.stop import Progress, StopRule
+from eaco_jax.driver.stop import Deadline, Progress, StopRule, WallTime
 from eaco_jax.driver.stopping import StopReason, exhausted, stop_rules
-from eaco_jax.errors import Interrupted, ProblemError
+from eaco_jax.errors import ConfigError, Interrupted, ProblemError
 from eaco_jax.strategies.base import State, Strategy
 
 
@@ -135,6 +136,7 @@ def minimize(
     progress: bool = False,
     checkpointing: Checkpointing | None = None,
     precision: str = "auto",
+    chunk_seconds: float | None = None,
 ) -> Result:
     """Minimise ``problem`` with an EACO colony (or any strategy of the library).
 
@@ -160,6 +162,11 @@ def minimize(
         then the initial state's best). A budget counted from the caller's start:
         ``deadline=started + seconds``.
       chunk_size: iterations per compiled call (default: about 20 chunks per run).
+      chunk_seconds: pace the chunks: each runs as many of its ``chunk_size`` iterations as
+        take about this many compute seconds at the previous chunk's pace, and no more than
+        fit in what a time rule (``max_seconds``, ``deadline``) leaves; the first runs one.
+        For runs whose iterations take milliseconds: fewer host round trips between them,
+        the clock still read every ``chunk_seconds`` (None: every chunk runs in full).
       progress: show a progress bar (tqdm).
       checkpointing: save (and resume) the run, see :class:`Checkpointing`.
       precision: ``"auto"`` (float64 for problems with constraints or float64 arrays, see
@@ -171,6 +178,11 @@ def minimize(
     (``err.result``), after a final checkpoint when checkpointing.
     """
     strategy = default_strategy(problem) if strategy is None else strategy
+    if chunk_seconds is not None and (isinstance(chunk_seconds, bool) or not isinstance(
+            chunk_seconds, int | float) or not (math.isfinite(chunk_seconds)
+                                                 and chunk_seconds > 0)):
+        raise ConfigError(f"chunk_seconds must be a finite number > 0 (or None), got "
+                          f"{chunk_seconds!r}")
     seeds = checked_seeds(strategy, problem, seed)
     use64 = needs_float64(problem, precision)
     scope = jax.enable_x64(True) if use64 else contextlib.nullcontext()
@@ -190,7 +202,26 @@ def minimize(
         row_seeds = seeds * n_settings
         return run(strategy, problem, state, total=total, chunk=chunk, seeds=row_seeds,
                    rules=rules, progress=progress, checkpointing=checkpointing,
-                   max_evaluations=max_evaluations, compile_seconds=init_seconds)
+                   max_evaluations=max_evaluations, compile_seconds=init_seconds,
+                   chunk_seconds=chunk_seconds)
+
+
+def time_left(rules: list[tuple[str, StopRule]], progress: Progress) -> float | None:
+    """Seconds the time rules (``max_seconds``: compute; ``deadline``: wall clock) leave
+    after ``progress``; None without such a rule."""
+    left = [rule.seconds - progress.seconds for _, rule in rules if isinstance(rule, WallTime)]
+    left += [rule.at - progress.now for _, rule in rules if isinstance(rule, Deadline)]
+    return min(left) if left else None
+
+
+def paced_length(pace: float | None, seconds: float, left: float | None) -> int:
+    """Iterations for the next chunk: about ``seconds`` of compute at ``pace`` seconds an
+    iteration, no more than fit in ``left`` (None: no time rule), at least one; one while
+    the pace is unknown."""
+    if pace is None or pace <= 0:
+        return 1
+    fit = seconds if left is None else min(seconds, left)
+    return max(1, int(fit / pace))
 
 
 def _trim(hist: dict[str, Any], length: int, batched: bool) -> dict[str, np.ndarray]:
@@ -247,6 +278,7 @@ def run(
     checkpointing: Checkpointing | None = None,
     max_evaluations: int | None = None,
     compile_seconds: float = 0.0,
+    chunk_seconds: float | None = None,
 ) -> Result:
     """Run ``state`` (one row per entry of ``seeds``) in chunks to ``total`` iterations
     (and, with ``max_evaluations``, until no row can start another iteration), or from the
@@ -284,6 +316,7 @@ def run(
                 total = done
 
     run_seconds = 0.0
+    pace = None  # compute seconds per iteration of the last chunk
     start = done
     bar = None
     if progress:
@@ -301,6 +334,10 @@ def run(
                 length = min(chunk, total - done)
                 if every:  # saves land on multiples of checkpoint_every
                     length = min(length, every - done % every)
+                if chunk_seconds is not None:
+                    length = min(length, paced_length(
+                        pace, chunk_seconds,
+                        time_left(rules or [], Progress(done, run_seconds, compile_seconds))))
                 signals.at = done
                 try:
                     compiled, seconds = compiled_chunk(strategy, chunk, batched, problem, state,
@@ -324,7 +361,9 @@ def run(
                     if oom is None:
                         raise
                     raise oom from None
-                run_seconds += time.perf_counter() - t0
+                ran = time.perf_counter() - t0
+                run_seconds += ran
+                pace = ran / length
                 chunk_hist = _trim(jax.device_get(hist), length, batched)
                 history.append(chunk_hist)
                 tally.add(chunk_hist)

@@ -157,6 +157,9 @@ def auto_help(attr: str, show: Callable[[Any], str] = str,
 ITERATIONS = 300
 #: iterations per compiled call of a sparse-path run that only --max-seconds ends
 SPARSE_CHUNK = 1
+#: ... with --chunk-seconds: the compiled call's length, of which each chunk runs what its pace
+#: allows (the driver's ``chunk_seconds``)
+PACED_CHUNK = 64
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,10 +224,19 @@ class TspSettings:
                                          "edges each ant changed, evaluating at most this "
                                          "many cities a step; 0: every city, every step "
                                          f"(default {LS_FOCUS_WIDTH})")
+    chunk_seconds: float | None = setting(None, "sparse path with --max-seconds alone: run "
+                                          f"up to {PACED_CHUNK} iterations per compiled call, "
+                                          "about this many seconds' worth at the last call's "
+                                          "pace, instead of one (fewer host round trips when "
+                                          "iterations take milliseconds)")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
+        if self.chunk_seconds is not None and not (math.isfinite(self.chunk_seconds)
+                                                   and self.chunk_seconds > 0):
+            raise ConfigError(f"chunk_seconds must be a finite number > 0, got "
+                              f"{self.chunk_seconds}; e.g. --chunk-seconds 0.2")
         check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
                        "ls_neighbors", "neighbors", "max_new_edges")
         if self.ls_focus_width is not None and self.ls_focus_width < 0:
@@ -288,6 +300,9 @@ def build(s: TspSettings) -> Built:
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)
     budget = budget_of(s, s.iterations, {"iterations": ITERATIONS},
                        chunk=SPARSE_CHUNK if is_sparse(problem) else None)
+    if s.chunk_seconds is not None and budget.get("chunk_size") == SPARSE_CHUNK \
+            and is_sparse(problem):
+        budget.update(chunk_size=PACED_CHUNK, chunk_seconds=float(s.chunk_seconds))
     return Built(problem, strategy, params, budget)
 
 
