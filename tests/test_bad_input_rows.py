@@ -103,6 +103,8 @@ def test_interrupt_lines_say_what_was_kept(tmp_path):
      "--sparse on to eaco tsp"),
     (("tsp", "eil51", "--chunk-seconds", "0"),
      "chunk_seconds must be a finite number > 0, got 0.0; e.g. --chunk-seconds 0.2"),
+    (("tsp", "eil51", "--chunk-seconds", "0.2", "--iterations", "5"),
+     "chunk_seconds paces a run that --max-seconds alone ends; drop --iterations"),
     (("tsp", "eil51", "--ls-focus-width", "-1"),
      "ls_focus_width must be >= 0 (0: no focus), got -1; e.g. --ls-focus-width 128"),
     (("walk", "nosuch.json"), "is not a file; give a scene JSON file, 'default' or "

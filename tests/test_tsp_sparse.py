@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import eaco_jax as ea
+from eaco_jax.errors import ConfigError
 from eaco_jax.ops import pheromone
 from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
 from eaco_jax.ops.diversity import edge_diversity
@@ -355,9 +356,12 @@ def test_time_alone_reads_the_clock_after_every_sparse_iteration(tmp_path):
                                               chunk_seconds=0.2))
     assert (paced.budget["chunk_size"], paced.budget["chunk_seconds"]) == (
         run_tsp.PACED_CHUNK, 0.2)
-    fixed = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="on", iterations=30,
-                                              chunk_seconds=0.2))  # not time alone: as given
-    assert "chunk_seconds" not in fixed.budget
+    dense = run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="off", max_seconds=5.0,
+                                              chunk_seconds=0.2))  # paced within its 15
+    assert (dense.budget["chunk_size"], dense.budget["chunk_seconds"]) == (15, 0.2)
+    with pytest.raises(ConfigError, match="chunk_seconds paces a run that --max-seconds alone"):
+        run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="on", iterations=30,
+                                          chunk_seconds=0.2))
 
 
 def test_a_focused_colony_searches_from_the_changed_edges(monkeypatch):

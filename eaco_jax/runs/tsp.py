@@ -224,11 +224,11 @@ class TspSettings:
                                          "edges each ant changed, evaluating at most this "
                                          "many cities a step; 0: every city, every step "
                                          f"(default {LS_FOCUS_WIDTH})")
-    chunk_seconds: float | None = setting(None, "sparse path with --max-seconds alone: run "
-                                          f"up to {PACED_CHUNK} iterations per compiled call, "
-                                          "about this many seconds' worth at the last call's "
-                                          "pace, instead of one (fewer host round trips when "
-                                          "iterations take milliseconds)")
+    chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
+                                          "compiled call about this many seconds' worth of "
+                                          "iterations at the last call's pace (the sparse "
+                                          f"path: up to {PACED_CHUNK}, instead of one), so "
+                                          "fast iterations make fewer host round trips")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
@@ -300,9 +300,13 @@ def build(s: TspSettings) -> Built:
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)
     budget = budget_of(s, s.iterations, {"iterations": ITERATIONS},
                        chunk=SPARSE_CHUNK if is_sparse(problem) else None)
-    if s.chunk_seconds is not None and budget.get("chunk_size") == SPARSE_CHUNK \
-            and is_sparse(problem):
-        budget.update(chunk_size=PACED_CHUNK, chunk_seconds=float(s.chunk_seconds))
+    if s.chunk_seconds is not None:
+        if "chunk_size" not in budget:  # an iteration or evaluation budget: whole chunks
+            raise ConfigError("chunk_seconds paces a run that --max-seconds alone ends; drop "
+                              "--iterations / --max-evaluations, or drop --chunk-seconds")
+        budget["chunk_seconds"] = float(s.chunk_seconds)
+        if is_sparse(problem):
+            budget["chunk_size"] = PACED_CHUNK
     return Built(problem, strategy, params, budget)
 
 
