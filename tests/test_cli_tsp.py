@@ -228,17 +228,24 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     def strategy(**kw):
         return tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2, **kw)).strategy
 
-    st = strategy()  # this machine: a CPU, no row
+    cpu = tsp.sparse_defaults("cpu")
+    st = strategy()  # this machine: a CPU, 32 new edges city by city
+    assert (st.max_new_edges, st.construction) == (cpu.max_new_edges, "ants")
+    st = strategy(construction="scan")  # explicit: full construction
     assert (st.max_new_edges, st.construction, st.ls_focus_width) == (None, "ants", None)
     st = strategy(max_new_edges=8, local_search="or-2opt")
     assert (st.max_new_edges, st.ls_focus_width) == (8, tsp.LS_FOCUS_WIDTH)
     assert strategy(max_new_edges=8, ls_focus_width=0).ls_focus_width is None
     assert strategy(max_new_edges=8, ls_focus_width=16).ls_focus_width == 16
-    built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))
-    ck = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
+    ck = Checkpointing("unused", run_info={"settings": {"construction": "scan"}})
+    built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2, construction="scan"))
     pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
     assert (pinned["max_new_edges"], pinned["construction"], pinned["ls_focus_width"]) == (
-        None, "scan", 0)
+        None, "scan", 0)  # full construction stays full on a backend with a row
+    ck = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
+    built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))
+    pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
+    assert (pinned["max_new_edges"], pinned["construction"]) == (cpu.max_new_edges, "scan")
 
     monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
     row = tsp.sparse_defaults("gpu")

@@ -95,10 +95,12 @@ class SparseRow:
     claim: str
 
 
-#: the sparse path's focused construction by backend (a backend without a row builds full
-#: tours): on a GPU, 32 new edges as moves (best of four, claim tsp-10k-h100-moves-32-over-bhh)
+#: the sparse path's focused construction by backend, each row chosen on the 10k selection
+#: instance: on a GPU 32 new edges as moves (best of four), on a CPU 32 new edges city by city
+#: (best of three; full construction: ``--construction scan``)
 SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
     SparseRow("gpu", 32, "moves", "tsp-10k-h100-moves-32-over-bhh"),
+    SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean"),
 )
 #: cities a step of the focused batched search evaluates when ``--ls-focus-width`` is left out
 #: and ants change a bounded number of edges (:data:`LS_FOCUS_CLAIM`); 0 turns the focus off
@@ -218,7 +220,7 @@ class TspSettings:
                                         "auto: " + "; ".join(
                                             f"{r.max_new_edges} as {r.construction} on a "
                                             f"{r.backend.upper()}" for r in SPARSE_DEFAULTS)
-                                        + "; full construction elsewhere)")
+                                        + "; --construction scan alone: full construction)")
     ls_focus_width: int | None = setting(None, "with --max-new-edges: the batched local "
                                          "search (2opt, or-2opt) starts from the ends of the "
                                          "edges each ant changed, evaluating at most this "
