@@ -247,7 +247,13 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
     assert (pinned["max_new_edges"], pinned["construction"]) == (cpu.max_new_edges, "scan")
 
+    from eaco_jax.problems.tsp_sparse import is_sparse
+
+    # --sparse auto: a CPU takes the sparse path from its row's from_cities (pr2392 has 2,392)
+    assert cpu.from_cities <= 2392
+    assert is_sparse(tsp.build(tsp.TspSettings("pr2392", iterations=2)).problem)
     monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    assert not is_sparse(tsp.build(tsp.TspSettings("pr2392", iterations=2)).problem)
     row = tsp.sparse_defaults("gpu")
     st = strategy()
     assert (st.max_new_edges, st.construction, st.ls_focus_width) == (

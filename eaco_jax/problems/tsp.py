@@ -270,13 +270,14 @@ def euclidean_distances(coords: Any) -> np.ndarray:
 
 
 def load_tsplib(name_or_path: str | Path, neighbors: int | None = None,
-                sparse: bool | None = None) -> Any:
+                sparse: bool | None = None, sparse_from: int | None = None) -> Any:
     """A bundled instance by bare name (``"eil51"``) or any TSPLIB ``.tsp`` file by path.
 
     The optimum comes from the bundled ``optima.csv`` when the instance name matches.
     ``sparse``: a :class:`~eaco_jax.problems.tsp_sparse.SparseTSP` (no distance matrix,
-    memory O(n k)) when True; None (default) from ``SPARSE_MIN_CITIES`` cities on for the
-    coordinate metrics it computes (EUC_2D, CEIL_2D, ATT), else a dense :class:`TSP`.
+    memory O(n k)) when True; None (default) from ``sparse_from`` (default
+    ``SPARSE_MIN_CITIES``) cities on for the coordinate metrics it computes (EUC_2D, CEIL_2D,
+    ATT), else a dense :class:`TSP`.
     ``neighbors``: candidate-list length (default 20 dense, 16 sparse).
     """
     text = str(name_or_path)
@@ -300,7 +301,8 @@ def load_tsplib(name_or_path: str | Path, neighbors: int | None = None,
 
     can_sparse = inst.edge_weight_type in tsp_sparse.SPARSE_METRICS
     if sparse is None:
-        sparse = can_sparse and inst.dimension >= tsp_sparse.SPARSE_MIN_CITIES
+        least = tsp_sparse.SPARSE_MIN_CITIES if sparse_from is None else int(sparse_from)
+        sparse = can_sparse and inst.dimension >= least
     if sparse:
         if not can_sparse:
             raise ProblemError(

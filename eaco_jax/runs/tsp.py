@@ -93,14 +93,20 @@ class SparseRow:
     max_new_edges: int
     construction: str
     claim: str
+    #: ``--sparse auto`` takes the sparse path from this many cities (None: the problem
+    #: layer's ``SPARSE_MIN_CITIES``, a round size), chosen by ``from_claim``
+    from_cities: int | None = None
+    from_claim: str = ""
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
 #: instance: on a GPU 32 new edges as moves (best of four), on a CPU 32 new edges city by city
-#: (best of three; full construction: ``--construction scan``)
+#: (best of three; full construction: ``--construction scan``); on a CPU the sparse path starts
+#: from 2,000 cities (it beat the dense path at 2,000, 3,000 and 5,000 on selection instances)
 SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
     SparseRow("gpu", 32, "moves", "tsp-10k-h100-moves-32-over-bhh"),
-    SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean"),
+    SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
+              from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
 )
 #: cities a step of the focused batched search evaluates when ``--ls-focus-width`` is left out
 #: and ants change a bounded number of edges (:data:`LS_FOCUS_CLAIM`); 0 turns the focus off
@@ -202,7 +208,10 @@ class TspSettings:
                          "compilation and the first tour included)", choices=("run", "call"))
     sparse: str = setting("auto", "distance matrix or not: on (coordinates, candidate lists "
                           "and trails on candidate edges only, memory O(n k)), off (n x n "
-                          "matrices), auto (on from 8,000 cities for EUC_2D, CEIL_2D, ATT)",
+                          "matrices), auto (on for EUC_2D, CEIL_2D, ATT from " + "; ".join(
+                              f"{r.from_cities:,} cities on a {r.backend.upper()}"
+                              for r in SPARSE_DEFAULTS if r.from_cities) + "; from 8,000 "
+                          "elsewhere)",
                           choices=("auto", "on", "off"))
     neighbors: int | None = setting(None, "candidate-list length per city (default 20 with a "
                                     "distance matrix, 16 without)")
@@ -276,7 +285,9 @@ def build(s: TspSettings) -> Built:
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     sparse = {"auto": None, "on": True, "off": False}[s.sparse]
-    problem = load_tsplib(s.instance, neighbors=s.neighbors, sparse=sparse)
+    row = sparse_defaults(jax.default_backend())
+    problem = load_tsplib(s.instance, neighbors=s.neighbors, sparse=sparse,
+                          sparse_from=row.from_cities if row is not None else None)
     auto = colony_defaults(int(problem.n), jax.default_backend(), s.max_seconds)
     ants = auto.ants if s.ants is None else int(s.ants)
     ls_neighbors = auto.ls_neighbors if s.ls_neighbors is None else int(s.ls_neighbors)
@@ -284,8 +295,8 @@ def build(s: TspSettings) -> Built:
     ls_best_k = auto.ls_best_k if s.ls_best_k is None else int(s.ls_best_k)
     preset = auto.preset if s.preset == "auto" else s.preset
     max_new_edges, construction = s.max_new_edges, s.construction
-    row = sparse_defaults(jax.default_backend()) if is_sparse(problem) else None
-    if row is not None and max_new_edges is None and construction == "auto":
+    if row is not None and is_sparse(problem) and max_new_edges is None \
+            and construction == "auto":
         max_new_edges, construction = row.max_new_edges, row.construction
     focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
