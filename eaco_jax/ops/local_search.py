@@ -276,12 +276,19 @@ def _two_opt_moves(pos: Array, succ: Array, pred: Array, dist: Array, cand: Arra
     a = jnp.arange(n, dtype=jnp.int32) if at is None else at
     cand, cand_d = (cand, cand_d) if at is None else (cand[at], cand_d[at])
     rows = jnp.arange(a.shape[0])
-    d_succ = dist[jnp.arange(n, dtype=jnp.int32), succ]  # d(x, succ x) of every city: O(n)
+    if at is None:  # d(x, succ x) of every city, once (O(n)), then gathered
+        d_succ = dist[a, succ]
+
+        def ds(x):
+            return d_succ[x]
+    else:  # ... only of the cities a focused step reads (O(width k))
+        def ds(x):
+            return dist[x, succ[x]]
     sa, pa = succ[a], pred[a]
     sc, pc = succ[cand], pred[cand]
     degenerate = (cand == sa[:, None]) | (cand == pa[:, None])
-    g_s = d_succ[a][:, None] + d_succ[cand] - cand_d - dist[sa[:, None], sc]
-    g_p = d_succ[pa][:, None] + d_succ[pc] - cand_d - dist[pa[:, None], pc]
+    g_s = ds(a)[:, None] + ds(cand) - cand_d - dist[sa[:, None], sc]
+    g_p = ds(pa)[:, None] + ds(pc) - cand_d - dist[pa[:, None], pc]
     g_s = jnp.where(degenerate, -jnp.inf, g_s)
     g_p = jnp.where(degenerate, -jnp.inf, g_p)
     js, jp = jnp.argmax(g_s, axis=1), jnp.argmax(g_p, axis=1)
@@ -299,6 +306,25 @@ def _two_opt_moves(pos: Array, succ: Array, pred: Array, dist: Array, cand: Arra
     wrap = lo == 0
     lo, hi = jnp.where(wrap, hi + 1, lo), jnp.where(wrap, n - 1, hi)
     return jnp.where(gain > 0, gain, -jnp.inf), lo, hi
+
+
+def _apply_proposals(tour: Array, pos: Array, two: tuple[Array, Array, Array],
+                     orr: tuple[Array, ...] | None, per_step: int, budget: Array,
+                     acceptance: str) -> tuple[Array, Array, Array]:
+    """Apply the best disjoint of a step's proposals: ``two`` = (gain, lo, hi) of 2-opt
+    reversals, and with ``orr`` = (gain, lo, hi, kind, span, rev) of Or-opt moves competing
+    in the same batch (gains ``-inf`` where nothing improves); see :func:`_apply_disjoint`."""
+    gain, lo, hi = two
+    if orr is None:
+        return _apply_disjoint(tour, pos, gain, lo, hi, per_step, budget, acceptance=acceptance)
+    og, olo, ohi, okind, ospan, orev = orr
+    m = gain.shape[0]
+    return _apply_disjoint(
+        tour, pos, jnp.concatenate([gain, og]), jnp.concatenate([lo, olo]),
+        jnp.concatenate([hi, ohi]), per_step, budget,
+        kind=jnp.concatenate([jnp.full(m, REVERSE, jnp.int32), okind]),
+        span=jnp.concatenate([jnp.zeros(m, jnp.int32), ospan]),
+        rev=jnp.concatenate([jnp.zeros(m, bool), orev]), acceptance=acceptance)
 
 
 def _focused_one(
@@ -325,20 +351,14 @@ def _focused_one(
         gain, lo, hi = _two_opt_moves(pos, succ, pred, dist, cand, cand_d, at)
         gain = jnp.where(valid, gain, -jnp.inf)
         found = gain > 0
+        orr = None
         if or_opt:
-            og, olo, ohi, okind, ospan, orev = _or_opt_moves(tour, pos, succ, pred, dist, cand,
-                                                             cand_d, at)
+            og, *rest = _or_opt_moves(tour, pos, succ, pred, dist, cand, cand_d, at)
             og = jnp.where(valid & (og > 0), og, -jnp.inf)
             found = found | (og > 0)
-            tour, pos, applied = _apply_disjoint(
-                tour, pos, jnp.concatenate([gain, og]), jnp.concatenate([lo, olo]),
-                jnp.concatenate([hi, ohi]), per_step, max_moves - moves,
-                kind=jnp.concatenate([jnp.full(width, REVERSE, jnp.int32), okind]),
-                span=jnp.concatenate([jnp.zeros(width, jnp.int32), ospan]),
-                rev=jnp.concatenate([jnp.zeros(width, bool), orev]), acceptance=acceptance)
-        else:
-            tour, pos, applied = _apply_disjoint(tour, pos, gain, lo, hi, per_step,
-                                                 max_moves - moves, acceptance=acceptance)
+            orr = (og, *rest)
+        tour, pos, applied = _apply_proposals(tour, pos, (gain, lo, hi), orr, per_step,
+                                              max_moves - moves, acceptance)
         # evaluated, nothing to gain: bit cleared (the padding slots touch nothing)
         active = active.at[jnp.where(valid & ~found, at, n)].set(False, mode="drop")
         # both ends of every removed edge: the cities whose pair of tour neighbours changed
@@ -382,19 +402,12 @@ def _two_opt_one(
         succ = tour[(pos + 1) % n]  # successor of each city
         pred = tour[(pos - 1) % n]
         gain, lo, hi = _two_opt_moves(pos, succ, pred, dist, cand, cand_d)
+        orr = None
         if or_opt:  # each city's best 2-opt move and its best Or-opt move compete
-            og, olo, ohi, okind, ospan, orev = _or_opt_moves(tour, pos, succ, pred, dist, cand,
-                                                             cand_d)
-            tour, pos, applied = _apply_disjoint(
-                tour, pos, jnp.concatenate([gain, jnp.where(og > 0, og, -jnp.inf)]),
-                jnp.concatenate([lo, olo]), jnp.concatenate([hi, ohi]), per_step,
-                max_moves - moves,
-                kind=jnp.concatenate([jnp.full(n, REVERSE, jnp.int32), okind]),
-                span=jnp.concatenate([jnp.zeros(n, jnp.int32), ospan]),
-                rev=jnp.concatenate([jnp.zeros(n, bool), orev]), acceptance=acceptance)
-        else:
-            tour, pos, applied = _apply_disjoint(tour, pos, gain, lo, hi, per_step,
-                                                 max_moves - moves, acceptance=acceptance)
+            og, *rest = _or_opt_moves(tour, pos, succ, pred, dist, cand, cand_d)
+            orr = (jnp.where(og > 0, og, -jnp.inf), *rest)
+        tour, pos, applied = _apply_proposals(tour, pos, (gain, lo, hi), orr, per_step,
+                                              max_moves - moves, acceptance)
         return tour, pos, moves + applied, steps + 1, applied == 0
 
     def cond(carry):
