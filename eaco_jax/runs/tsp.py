@@ -235,6 +235,9 @@ class TspSettings:
                                          "edges each ant changed, evaluating at most this "
                                          "many cities a step; 0: every city, every step "
                                          f"(default {LS_FOCUS_WIDTH})")
+    merge_ants: int = setting(0, "with --max-new-edges: merge the improvements of up to this "
+                              "many ants (largest gains over the best tour, disjoint changes, "
+                              "one tour after the merge) into one tour each iteration; 0: off")
     chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
                                           "compiled call about this many seconds' worth of "
                                           "iterations at the last call's pace (the sparse "
@@ -253,6 +256,9 @@ class TspSettings:
         if self.ls_focus_width is not None and self.ls_focus_width < 0:
             raise ConfigError(f"ls_focus_width must be >= 0 (0: no focus), got "
                               f"{self.ls_focus_width}; e.g. --ls-focus-width 128")
+        if self.merge_ants < 0 or self.merge_ants == 1:
+            raise ConfigError(f"merge_ants must be 0 (off) or >= 2, got {self.merge_ants}; "
+                              "e.g. --merge-ants 16")
         if self.clock == "call" and self.max_seconds is None:
             raise ConfigError("clock='call' counts the --max-seconds budget from the call; "
                               "give --max-seconds S (or leave --clock run)")
@@ -303,6 +309,7 @@ def build(s: TspSettings) -> Built:
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=max_new_edges,
                          ls_focus_width=(focus or None) if max_new_edges is not None else None,
+                         merge_ants=s.merge_ants or None,
                          construction=(construction if construction.startswith("moves")
                                        else "ants"),
                          construction_fallback=("auto" if construction.startswith("moves")
@@ -351,7 +358,7 @@ def focused_settings(st: Any, given: str, sparse: bool) -> dict[str, Any]:
     else:
         construction = "scan" if sparse and given == "auto" else given
     return {"max_new_edges": st.max_new_edges, "construction": construction,
-            "ls_focus_width": st.ls_focus_width or 0}
+            "ls_focus_width": st.ls_focus_width or 0, "merge_ants": st.merge_ants or 0}
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:

@@ -260,6 +260,10 @@ class GraphEACO(Strategy):
     #: many cities a step (None: every city, every step; the don't-look-bit searches always
     #: start from those cities)
     ls_focus_width: int | None = None
+    #: sparse problems with ``max_new_edges``: merge the improvements of up to this many ants
+    #: (the largest gains over the best tour, touching disjoint cities, the merge one tour)
+    #: into one tour that takes the worst ant's place (``ops/tour_merge.py``; None: off)
+    merge_ants: int | None = None
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -289,6 +293,14 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         if self.ls_focus_width is not None and self.ls_focus_width < 1:
             raise ConfigError(f"ls_focus_width must be >= 1 or None, got {self.ls_focus_width}")
+        if self.merge_ants is not None:
+            if isinstance(self.merge_ants, bool) or not isinstance(self.merge_ants, int) \
+                    or self.merge_ants < 2:
+                raise ConfigError(f"merge_ants must be an integer >= 2 or None, got "
+                                  f"{self.merge_ants!r}")
+            if self.max_new_edges is None:
+                raise ConfigError("merge_ants merges ants that changed a few edges of the best "
+                                  "tour: give --max-new-edges N (max_new_edges=N)")
         for name, value, allowed in (
             ("local_search", self.local_search, LOCAL_SEARCHES),
             ("crossover", self.crossover, CROSSOVERS),
@@ -516,9 +528,15 @@ class GraphEACO(Strategy):
         if sparse and self.max_new_edges is not None:  # search from the changed edges only
             from eaco_jax.ops.local_search import changed_cities
 
-            focus = changed_cities(tours, jnp.where(jnp.isfinite(state.best_cost),
-                                                    state.best_solution, state.first_tour))
+            ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
+                            state.first_tour)
+            focus = changed_cities(tours, ref)
         tours = self._local_search(tours, problem, k_ls[0] if k_ls else None, focus)
+        if sparse and self.merge_ants is not None:
+            from eaco_jax.ops.tour_merge import merge_improvements
+
+            merged, _, count, worst = merge_improvements(ref, tours, dist, self.merge_ants)
+            tours = jnp.where(count >= 2, tours.at[worst].set(merged), tours)
         return tours, state.replace(chaos=x, pheromone_tour_length=l_pn)
 
     def _genetic(
