@@ -107,6 +107,10 @@ def test_interrupt_lines_say_what_was_kept(tmp_path):
      "chunk_seconds paces a run that --max-seconds alone ends; drop --iterations"),
     (("tsp", "eil51", "--ls-focus-width", "-1"),
      "ls_focus_width must be >= 0 (0: no focus), got -1; e.g. --ls-focus-width 128"),
+    (("tsp", "eil51", "--merge-ants", "1"),
+     "merge_ants must be 0 (off) or >= 2, got 1; e.g. --merge-ants 16"),
+    (("tsp", "eil51", "--merge-ants", "4", "--iterations", "2"),
+     "merge_ants merges ants that changed a few edges of the best tour: give --max-new-edges N"),
     (("walk", "nosuch.json"), "is not a file; give a scene JSON file, 'default' or "
      "'random:SEED'"),
     (("walk", "random:x"), "scene 'random:x': write random:SEED with an integer seed"),

@@ -126,8 +126,9 @@ def merge_improvements(ref: Array, tours: Array, dist: Array, top: int
         mine = touched[a]
         fits = (gain[a] > 0) & ~jnp.any(mine & used)
         trial = jnp.where(mine[:, None], pairs[a], table)
-        # the first ant taken is a tour of its own; a later one needs the check
-        keep = fits & ((count == 0) | is_single_cycle(trial))
+        # the first ant taken is a tour of its own; a later one needs the check, which only
+        # runs for an ant that fits (most do not improve; under vmap both branches run)
+        keep = jax.lax.cond(fits & (count > 0), is_single_cycle, lambda _: fits, trial)
         return (jnp.where(keep, trial, table), used | (keep & mine),
                 total + jnp.where(keep, gain[a], 0.0), count + keep.astype(jnp.int32))
 
