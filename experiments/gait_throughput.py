@@ -26,6 +26,10 @@ step ants x worlds copies. ``--robot`` takes several robots (``nao,op3,go2``: sh
 spec paths) for MJX steps/s per robot side by side; ``--impl`` picks MJX's implementation
 (``jax``, ``warp`` on CUDA: the raw loops are then not timed, ``auto``).
 
+``--constrained`` times the constrained search's problem instead (``eaco gait --constrained``:
+speed under the endurance, current, slip, drift and fall constraints, each computed in the same
+batched rollout, the motors' thermal model included), beside the same raw rate.
+
 ``ratio = colony / raw`` is what the optimiser (controller, fitness, colony) costs; the target is
 >= 0.9. ``ratio wlk = colony / raw walking`` separates the optimiser's own cost from the harder
 physics of walking robots. ``eval/raw`` shows how much of that is the walk engine rather than
@@ -80,26 +84,28 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def gait_problem(robot: str, backend: str, control_steps: int, worlds: int = 1,
-                 impl: str = "auto"):
+                 impl: str = "auto", constrained: bool = False):
     """The gait problem timed: ``control_steps`` long, R = ``worlds`` randomised worlds per ant
-    (the robust fitness; seed 0 of the optimisation stream) when ``worlds`` > 1."""
+    (the robust fitness; seed 0 of the optimisation stream) when ``worlds`` > 1;
+    ``constrained``: the constrained search's problem (speed under the motor, slip, drift and
+    fall constraints, computed in the same rollout)."""
     spec = load_robot(robot)
     robust = RobustConfig(R=int(worlds), seed=0) if worlds > 1 else None
     kw = {"impl": impl} if backend == "mjx" else {}
     problem = make_gait_problem(robot, backend=backend, horizon=control_steps * spec.control_dt,
-                                robust=robust, **kw)
+                                robust=robust, constrained=constrained, **kw)
     assert problem.n_steps == control_steps
     return problem
 
 
 def colony_rate(robot: str, backend: str, batch: int, control_steps: int, iterations: int,
                 repeats: int, seed: int = 0, worlds: int = 1,
-                impl: str = "auto") -> dict[str, Any]:
+                impl: str = "auto", constrained: bool = False) -> dict[str, Any]:
     """Physics steps/s of the jitted colony loop (ask, batched rollout + fitness, tell):
     physics steps x ants x worlds x iterations / wall seconds."""
     spec = load_robot(robot)
     k = substeps(spec, native_model(spec, 0.0, "fast"))
-    problem = gait_problem(robot, backend, control_steps, worlds, impl)
+    problem = gait_problem(robot, backend, control_steps, worlds, impl, constrained)
     strategy = ContinuousEACO(num_ants=batch, archive_size=max(2, batch // 2), refine_ants=0,
                               repair_steps=0)
 
@@ -119,15 +125,16 @@ def colony_rate(robot: str, backend: str, batch: int, control_steps: int, iterat
 
 
 def evaluate_rate(robot: str, backend: str, batch: int, control_steps: int, repeats: int,
-                  seed: int = 0, worlds: int = 1, impl: str = "auto") -> dict[str, Any]:
+                  seed: int = 0, worlds: int = 1, impl: str = "auto",
+                  constrained: bool = False) -> dict[str, Any]:
     """Physics steps/s of ``GaitProblem.evaluate`` alone (walk engine + physics + fitness, no
     colony): separates what the controller costs from what the colony update costs."""
     spec = load_robot(robot)
     k = substeps(spec, native_model(spec, 0.0, "fast"))
-    problem = gait_problem(robot, backend, control_steps, worlds, impl)
+    problem = gait_problem(robot, backend, control_steps, worlds, impl, constrained)
     x = random_gaits(problem, batch, seed)
     t0 = time.perf_counter()
-    fn = jax.jit(lambda a: problem.evaluate(a).f).lower(x).compile()
+    fn = jax.jit(lambda a: problem.evaluate(a)).lower(x).compile()
     compile_s = time.perf_counter() - t0
     _, wall = timed(lambda: fn(x), repeats)
     steps = control_steps * k
@@ -244,7 +251,7 @@ def measure(robot: str, backend: str, batch: int, args: argparse.Namespace) -> d
     steps = control_steps * k
     copies = batch * args.worlds
     col = colony_rate(robot, backend, batch, control_steps, args.iterations, args.repeats,
-                      worlds=args.worlds, impl=args.impl)
+                      worlds=args.worlds, impl=args.impl, constrained=args.constrained)
     impl = col["impl"] if backend == "mjx" else "c"
     raw = walk = None
     if args.no_raw:
@@ -255,10 +262,12 @@ def measure(robot: str, backend: str, batch: int, args: argparse.Namespace) -> d
     elif backend == "native":
         raw = raw_native_rate(robot, copies, steps, args.repeats)
     ev = None if args.no_split else evaluate_rate(
-        robot, backend, batch, control_steps, args.repeats, worlds=args.worlds, impl=args.impl)
+        robot, backend, batch, control_steps, args.repeats, worlds=args.worlds, impl=args.impl,
+        constrained=args.constrained)
     rate = lambda d: None if d is None else d["steps_per_s"]  # noqa: E731
     return {"robot": spec.name, "backend": backend, "impl": impl, "batch": batch,
-            "worlds": args.worlds, "physics_steps": steps, "control_steps": control_steps,
+            "worlds": args.worlds, "constrained": args.constrained, "physics_steps": steps,
+            "control_steps": control_steps,
             "substeps": k, "timestep_s": spec.control_dt / k,
             "colony_steps_per_s": col["steps_per_s"], "raw_steps_per_s": rate(raw),
             "ratio": ratio(col["steps_per_s"], rate(raw)),
@@ -289,6 +298,9 @@ def main() -> None:
                     help="skip timing GaitProblem.evaluate alone (one compile less per batch)")
     ap.add_argument("--no-raw", action="store_true",
                     help="skip the raw physics loops (two compiles less per MJX batch)")
+    ap.add_argument("--constrained", action="store_true",
+                    help="time the constrained search's problem (eaco gait --constrained: "
+                         "thermal, current, slip, drift and fall constraints in the rollout)")
     ap.add_argument("--out", default=None, help="JSON path (default results/..._<device>.json)")
     args = ap.parse_args()
 
@@ -344,6 +356,7 @@ def main() -> None:
         "host": platform.node(), "cpu_count": os.cpu_count(),
         "command": "python experiments/gait_throughput.py " + " ".join(sys.argv[1:]),
         "date": time.strftime("%Y-%m-%d"), "worlds": args.worlds, "impl": args.impl,
+        "constrained": args.constrained,
         "steps_requested": args.steps, "iterations_per_call": args.iterations,
         "repeats": args.repeats, "rows": rows, "native_vs_mjx": native_vs_mjx,
         "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,

@@ -51,6 +51,24 @@ def run_arm(path: Path, iterations: int, seed: int, args: list[str]) -> dict:
     return {**rec, "wall_seconds": wall, "argv": argv[2:]}
 
 
+def summarize(rows: list[dict], labels: list[str], marks: list[int]) -> dict:
+    """Per arm: runs, mean and t interval over BHH at the end and the mean at each mark,
+    mean seconds per iteration."""
+    summary = {}
+    for label in labels:
+        ok = [r for r in rows if r["arm"] == label and "error" not in r]
+        if not ok:
+            continue
+        vals = [r["over_bhh_percent"] for r in ok]
+        summary[label] = {
+            "n": len(vals), "over_bhh_mean": sum(vals) / len(vals),
+            "over_bhh_ci95_t": t_ci(vals) if len(vals) > 1 else None,
+            "over_bhh_at_mean": {str(m): sum(r["over_bhh_at"][str(m)] for r in ok) / len(ok)
+                                 for m in marks if all(str(m) in r["over_bhh_at"] for r in ok)},
+            "seconds_per_iteration_mean": sum(r["seconds_per_iteration"] for r in ok) / len(ok)}
+    return summary
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=10000)
@@ -89,14 +107,7 @@ def main(argv: list[str] | None = None) -> None:
                                                        "over_bhh_percent",
                                                        "seconds_per_iteration", "error")}),
                   flush=True)
-    summary = {}
-    for label, _ in arms:
-        vals = [r["over_bhh_percent"] for r in rows if r["arm"] == label and "error" not in r]
-        spi = [r["seconds_per_iteration"] for r in rows if r["arm"] == label and "error" not in r]
-        if vals:
-            summary[label] = {"n": len(vals), "over_bhh_mean": sum(vals) / len(vals),
-                              "over_bhh_ci95_t": t_ci(vals) if len(vals) > 1 else None,
-                              "seconds_per_iteration_mean": sum(spi) / len(spi)}
+    summary = summarize(rows, [label for label, _ in arms], a.marks)
     print(f"{'arm':<14} {'n':>2} {'over BHH %':>10} {'s/iteration':>11}")
     for label, s in summary.items():
         print(f"{label:<14} {s['n']:>2} {s['over_bhh_mean']:>10.3f} "
