@@ -1,5 +1,8 @@
 """``eaco resume DIR``: continue a checkpointed run to its original budget.
 
+Iteration and evaluation budgets continue where the run stopped; a time budget
+(``--max-seconds``, either clock) starts again from the resume.
+
 Every run command stores its run kind, settings and checkpoint interval in its checkpoints;
 :func:`eaco_jax.runs.resume` reads them back and runs the kind again from the checkpoint
 (bit-identical to an unbroken run), returning the record the original command would have.
@@ -23,7 +26,8 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="print one JSON record")] = False,
         quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
     ) -> None:
-        """Continue an interrupted run from its newest checkpoint to its original budget."""
+        """Continue an interrupted run from its newest checkpoint to its original budget (a
+        --max-seconds budget starts again)."""
         from eaco_jax.runs import checkpoint_kind
         from eaco_jax.runs import resume as resume_run
 

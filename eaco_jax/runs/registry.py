@@ -59,7 +59,8 @@ def _stored_run(directory: Path) -> tuple[RunKind, dict[str, Any]]:
 
 
 def resume(directory: str | Path, *, progress: bool = False) -> dict[str, Any]:
-    """Continue the checkpointed run in ``directory`` to its original budget; its record."""
+    """Continue the checkpointed run in ``directory`` to its original budget (iterations and
+    evaluations continue; a time budget starts again); its record."""
     from eaco_jax.driver.minimize import Checkpointing
 
     directory = Path(directory)
