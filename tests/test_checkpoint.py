@@ -676,6 +676,41 @@ def test_a_checkpoint_written_by_the_old_sanitiser_resumes(tmp_path, monkeypatch
     assert _fingerprint(folder) == before
 
 
+@dataclasses.dataclass(frozen=True)
+class LaterFieldSearch(RandomSearch):
+    """RandomSearch with a field added in a later version (its default: the old behaviour)."""
+    later: int | None = None
+
+
+def test_a_checkpoint_written_before_a_strategy_field_existed_resumes(tmp_path, monkeypatch):
+    """A checkpoint whose stored strategy fields lack one added since resumes bit-identically
+    while that field is at its default; set to another value it is another run."""
+    from eaco_jax.driver import checkpoint
+
+    real = checkpoint.run_identity
+
+    def older(*args, **kw):  # the identity as a version without ``later`` stored it
+        ident = real(*args, **kw)
+        del ident["config"]["fields"]["later"]
+        del ident[checkpoint.FIELD_DEFAULTS]
+        return ident
+
+    kw = dict(seed=1, iterations=30, chunk_size=5, checkpoint_every=10)
+    unbroken = ea.minimize(_problem(), LaterFieldSearch(), seed=1, iterations=30, chunk_size=5)
+    folder = tmp_path / "old"
+    with monkeypatch.context() as m:
+        m.setattr(checkpoint, "run_identity", older)
+        mini(_problem(), LaterFieldSearch(), checkpoint_dir=folder, **kw)
+    assert "later" not in read_meta(folder)["config"]["fields"]
+    shutil.rmtree(folder / "30")
+    shutil.rmtree(folder / "20")
+    before = _fingerprint(folder)
+    with pytest.raises(CheckpointError, match="different run.*fields"):
+        mini(_problem(), LaterFieldSearch(later=3), checkpoint_dir=folder, **kw)
+    assert _fingerprint(folder) == before
+    _same(unbroken, mini(_problem(), LaterFieldSearch(), checkpoint_dir=folder, **kw))
+
+
 def test_one_json_rule():
     from eaco_jax.outputs import to_jsonable
 

@@ -100,6 +100,10 @@ def tree_hash(tree: Any, by_index: bool = False) -> str:
 #: written while its problem class flattened without field names (ConstrainedProblem before it
 #: was a dataclass) stored as the problem's hash
 HASH_BY_INDEX = "problem_hash_by_index"
+#: the strategy's dataclass defaults, stored beside the identity: a checkpoint written before
+#: the strategy had a field resumes where that field is at its default (new fields default to
+#: the behaviour before them)
+FIELD_DEFAULTS = "strategy_field_defaults"
 
 
 def run_identity(
@@ -133,7 +137,19 @@ def run_identity(
             "max_evaluations": None if max_evaluations is None else int(max_evaluations),
         },
         HASH_BY_INDEX: tree_hash(problem, by_index=True),
+        FIELD_DEFAULTS: to_jsonable({f.name: f.default for f in dataclasses.fields(strategy)
+                                     if f.default is not dataclasses.MISSING}),
     }
+
+
+def _added_at_default(old: Any, new: Any, defaults: Any) -> bool:
+    """Strategy fields stored by a version that lacked some: every stored field equal, every
+    field added since at its default."""
+    if not (isinstance(old, dict) and isinstance(new, dict) and isinstance(defaults, dict)):
+        return False
+    added = set(new) - set(old)
+    return (set(old) <= set(new) and all(old[k] == new[k] for k in old)
+            and all(k in defaults and new[k] == defaults[k] for k in added))
 
 
 def _compatible_version(stored: str, current: str) -> bool:
@@ -164,6 +180,9 @@ def check_identity(stored: dict[str, Any], current: dict[str, Any], where: Path)
             if (section, name) == ("problem", "hash") and old.get(name) is not None \
                     and old.get(name) == current.get(HASH_BY_INDEX):
                 continue  # the same leaves, hashed before the problem's fields had names
+            if (section, name) == ("config", "fields") and _added_at_default(
+                    old.get(name), new[name], current.get(FIELD_DEFAULTS)):
+                continue  # written before the strategy had some fields, now at defaults
             if old.get(name) != new[name]:
                 raise CheckpointError(
                     f"checkpoint in {where} belongs to a different run ({section} {name}: "
