@@ -152,6 +152,31 @@ def joint_trajectories(
     return _save(fig, path)
 
 
+def pareto_front(
+    points: np.ndarray,
+    path: str | Path | None = None,
+    *,
+    xlabel: str = "objective 1",
+    ylabel: str = "objective 2",
+    title: str = "Pareto front",
+) -> Drawn:
+    """The points ``(k, 2)`` of a front, joined in order of the first objective (an empty
+    front draws an empty frame that says so)."""
+    fig, ax = plt.subplots(figsize=(5.6, 4.2))
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(pts):
+        pts = pts[np.argsort(pts[:, 0], kind="stable")]
+        ax.plot(pts[:, 0], pts[:, 1], "o-", ms=4)
+    else:
+        ax.text(0.5, 0.5, "no feasible point", ha="center", va="center",
+                transform=ax.transAxes)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
 def planned_path(
     obstacles: Sequence[Sequence[Sequence[float]]],
     waypoints: np.ndarray,

@@ -92,6 +92,7 @@ DOCS = {
     "path": "Plan the shortest collision-free path from start to goal among obstacles.",
     "gait": "Optimise a walking gait with the EACO colony on batched physics.",
     "gait-eval": "Re-simulate stored gait parameters: speed, distance, fall, drift.",
+    "gait-front": "Search the Pareto front of walking speed against endurance or electrical CoT.",
     "walk": "Plan a route through a scene, then walk it with the NAO on native MuJoCo or MJX.",
 }
 

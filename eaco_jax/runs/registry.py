@@ -6,12 +6,12 @@ from pathlib import Path
 from typing import Any
 
 from eaco_jax.errors import CheckpointError, ConfigError
-from eaco_jax.runs import constrained, gait, path, tsp, walk
+from eaco_jax.runs import constrained, gait, gait_front, path, tsp, walk
 from eaco_jax.runs.base import RunKind
 
 _KINDS: dict[str, RunKind] = {
     k.name: k for k in (tsp.KIND, constrained.KIND, path.KIND, gait.KIND, gait.EVAL_KIND,
-                        walk.KIND)}
+                        gait_front.KIND, walk.KIND)}
 
 
 def register(kind: RunKind) -> RunKind:
