@@ -215,3 +215,16 @@ def test_merge_ants_must_be_an_integer_of_at_least_two(bad):
 def test_merge_ants_needs_focused_construction():
     with pytest.raises(ConfigError, match="max-new-edges"):
         GraphEACO(num_ants=4, merge_ants=4)
+
+
+def test_a_merging_colony_runs_seeds_vmapped():
+    """Under vmap over seeds the one-cycle check's ``lax.cond`` becomes a select: both seeds
+    still return tours, each the exact length the colony reports."""
+    rng = np.random.default_rng(0)
+    p = SparseTSP.from_coords(rng.integers(0, 100_000, (300, 2)), neighbors=8)
+    st = GraphEACO(num_ants=8, local_search="or-2opt", max_new_edges=4, construction="moves",
+                   ls_focus_width=16, merge_ants=8, seed_tour=True)
+    res = ea.minimize(p, st, seed=[0, 1], iterations=3)
+    for tour, cost in zip(np.asarray(res.best_solution), np.asarray(res.best_cost), strict=True):
+        assert sorted(tour) == list(range(300))
+        assert p.exact_length(tour) == cost
