@@ -367,8 +367,13 @@ def test_time_alone_reads_the_clock_after_every_sparse_iteration(tmp_path):
 def test_a_focused_colony_searches_from_the_changed_edges(monkeypatch):
     """GraphEACO with ``ls_focus_width`` hands the batched search the ends of the edges each
     ant changed (``active``)."""
+    from eaco_jax.driver import program_cache
+    from eaco_jax.driver.programs import clear_compiled
     from eaco_jax.ops import local_search
 
+    # the spy sees the search only while the colony is traced: no program from a cache
+    monkeypatch.setattr(program_cache, "_folder", None)
+    clear_compiled()
     seen = []
     real = local_search.two_opt
 
