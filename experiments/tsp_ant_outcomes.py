@@ -28,7 +28,8 @@ from common import write_results
 from tsp_large import random_instance
 
 import eaco_jax as ea
-from eaco_jax.ops.tour_merge import merge_improvements, neighbour_pairs
+from eaco_jax.ops.local_search import changed_cities
+from eaco_jax.ops.tour_merge import merge_improvements
 from eaco_jax.problems import load_tsplib
 from eaco_jax.strategies.graph_eaco import GraphEACO
 
@@ -58,7 +59,6 @@ def main(argv: list[str] | None = None) -> None:
     warm = ea.minimize(problem, colony("moves", 32, a.ants), seed=0, iterations=a.warm).state
     ref = np.asarray(warm.best_solution)
     ref_length = float(problem.exact_length(ref))
-    ref_pairs = np.asarray(neighbour_pairs(warm.best_solution))
     rows = []
     for spec in a.arm:
         label, _, rest = spec.partition("=")
@@ -69,14 +69,12 @@ def main(argv: list[str] | None = None) -> None:
             tours, _ = ask(jax.random.PRNGKey(k), warm, problem)
             tours = np.asarray(jax.block_until_ready(tours))
             seconds = time.perf_counter() - t0
-            pairs = np.asarray(jax.vmap(neighbour_pairs)(tours))
-            same = (((pairs[..., 0] == ref_pairs[:, 0]) & (pairs[..., 1] == ref_pairs[:, 1]))
-                    | ((pairs[..., 0] == ref_pairs[:, 1]) & (pairs[..., 1] == ref_pairs[:, 0])))
+            differ = np.asarray(changed_cities(tours, warm.best_solution)).any(axis=1)
             lengths = np.array([problem.exact_length(t) for t in tours])
             _, gain, merged, _ = merge_improvements(warm.best_solution, tours, problem.dist,
                                                     a.ants)
             row = {"arm": label, "construction": construction, "max_new_edges": int(mne),
-                   "key": k, "ants": a.ants, "differ": int((~same).any(axis=1).sum()),
+                   "key": k, "ants": a.ants, "differ": int(differ.sum()),
                    "improve": int((lengths < ref_length).sum()),
                    "best_gain": ref_length - float(lengths.min()),
                    "merged_gain": float(gain), "merged_ants": int(merged),

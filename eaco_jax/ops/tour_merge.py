@@ -30,6 +30,8 @@ import math
 import jax
 import jax.numpy as jnp
 
+from eaco_jax.ops.local_search import changed_cities
+
 Array = jax.Array
 
 
@@ -111,9 +113,7 @@ def merge_improvements(ref: Array, tours: Array, dist: Array, top: int
     top = max(1, min(int(top), m))
     ref_pairs = neighbour_pairs(ref)
     pairs = jax.vmap(neighbour_pairs)(tours)  # (m, n, 2)
-    same = (((pairs[..., 0] == ref_pairs[:, 0]) & (pairs[..., 1] == ref_pairs[:, 1]))
-            | ((pairs[..., 0] == ref_pairs[:, 1]) & (pairs[..., 1] == ref_pairs[:, 0])))
-    touched = ~same
+    touched = changed_cities(tours, ref)  # a city on a new edge: its pair of neighbours changed
     cities = jnp.arange(n, dtype=jnp.int32)
     ref_d = dist[cities, ref_pairs[:, 0]] + dist[cities, ref_pairs[:, 1]]
     ant_d = dist[cities[None, :], pairs[..., 0]] + dist[cities[None, :], pairs[..., 1]]

@@ -403,10 +403,21 @@ def _problem(robot: str, backend: str, horizon: float, direction: float, slope: 
                              turn=turn, constrained=constrained, ik=ik)
 
 
-def build(s: GaitSettings) -> Built:
-    """The gait problem (narrowed around ``init`` if given) and a gradient-free colony."""
+def narrowed_around(problem: Any, init: str | Path) -> tuple[Any, np.ndarray]:
+    """``problem`` with its box narrowed to +/- ``INIT_RADIUS`` of each range around the
+    stored gait in the file ``init`` (clipped to the box), and that gait's vector."""
     import jax.numpy as jnp
 
+    init_vec = params_vector(read_params_file(init), problem, str(init))
+    full_lo, full_hi = np.asarray(problem.lower), np.asarray(problem.upper)
+    half = INIT_RADIUS * (full_hi - full_lo)
+    lo = np.maximum(full_lo, init_vec - half).astype(np.float32)
+    hi = np.minimum(full_hi, init_vec + half).astype(np.float32)
+    return problem.replace(lower=jnp.asarray(lo), upper=jnp.asarray(hi)), init_vec
+
+
+def build(s: GaitSettings) -> Built:
+    """The gait problem (narrowed around ``init`` if given) and a gradient-free colony."""
     from eaco_jax.strategies.continuous_eaco import ContinuousEACO
 
     problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope, s.impl, s.robust,
@@ -415,13 +426,7 @@ def build(s: GaitSettings) -> Built:
     search = problem
     extra: dict[str, Any] = {"full_problem": problem}
     if s.init is not None:
-        init_vec = params_vector(read_params_file(s.init), problem, str(s.init))
-        full_lo, full_hi = np.asarray(problem.lower), np.asarray(problem.upper)
-        half = INIT_RADIUS * (full_hi - full_lo)
-        lo = np.maximum(full_lo, init_vec - half).astype(np.float32)
-        hi = np.minimum(full_hi, init_vec + half).astype(np.float32)
-        search = problem.replace(lower=jnp.asarray(lo), upper=jnp.asarray(hi))
-        extra["init_vec"] = init_vec
+        search, extra["init_vec"] = narrowed_around(problem, s.init)
     # the simulation is not differentiable: no SQP refinement ants, no gradient repair
     ants = int(s.ants)
     strategy = ContinuousEACO(num_ants=ants, archive_size=max(2, (3 * ants) // 2),

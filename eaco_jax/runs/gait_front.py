@@ -33,15 +33,7 @@ from eaco_jax.runs.base import (
     params_from,
     setting,
 )
-from eaco_jax.runs.gait import (
-    BACKENDS,
-    IK_CHOICES,
-    IMPLS,
-    INIT_RADIUS,
-    ROBOT_HELP,
-    params_vector,
-    read_params_file,
-)
+from eaco_jax.runs.gait import BACKENDS, IK_CHOICES, IMPLS, ROBOT_HELP, narrowed_around
 from eaco_jax.runs.tsp import PARAMS_HELP
 
 ensure_headless_gl()
@@ -99,13 +91,7 @@ def build(s: GaitFrontSettings) -> Built:
     problem = make_gait_mo_problem(s.robot, s.second, backend=s.backend, impl=s.impl,
                                    horizon=float(s.horizon), robust=robust, ik=s.ik)
     if s.init is not None:  # the box narrowed around the stored gait, as eaco gait --init
-        import jax.numpy as jnp
-
-        x0 = params_vector(read_params_file(s.init), problem, str(s.init))
-        lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
-        half = INIT_RADIUS * (hi - lo)
-        problem = problem.replace(lower=jnp.asarray(np.maximum(lo, x0 - half), jnp.float32),
-                                  upper=jnp.asarray(np.minimum(hi, x0 + half), jnp.float32))
+        problem, _ = narrowed_around(problem, s.init)
     strategy = MOEACO(num_ants=int(s.ants), archive_size=int(s.ants))
     params = params_from(strategy, problem, s.params, command="eaco gait-front")
     return Built(problem, strategy, params,

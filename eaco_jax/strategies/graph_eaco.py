@@ -499,11 +499,13 @@ class GraphEACO(Strategy):
         offset = jnp.concatenate([jnp.zeros((m,), jnp.int32), jnp.full((1,), n, jnp.int32)])
         q0 = jnp.concatenate([jnp.full((m,), p.q0), jnp.ones((1,))])
         cands = problem.neighbors if self.candidate_lists else None
+        # sparse: the best tour so far (the first tour before one): what the fallback follows,
+        # what focused ants change and search from, and what merging improves on
+        ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
+                        state.first_tour) if sparse else None
 
         def build(chaos_factor):
-            if sparse:  # the fallback follows the best tour so far (the first tour before)
-                ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
-                                state.first_tour)
+            if sparse:
                 if self.construction != "ants":
                     return construct_tours_moves(
                         k_build, stacked, problem.neighbors, ref, self.max_new_edges, m + 1,
@@ -528,8 +530,6 @@ class GraphEACO(Strategy):
         if sparse and self.max_new_edges is not None:  # search from the changed edges only
             from eaco_jax.ops.local_search import changed_cities
 
-            ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
-                            state.first_tour)
             focus = changed_cities(tours, ref)
         tours = self._local_search(tours, problem, k_ls[0] if k_ls else None, focus)
         if sparse and self.merge_ants is not None:
