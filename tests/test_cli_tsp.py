@@ -217,7 +217,7 @@ def read_settings(ck):
 
 def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypatch):
     """A sparse run left on --construction auto without --max-new-edges gets its backend's
-    SPARSE_DEFAULTS row (on a GPU: 32 new edges as moves) and the focused search
+    SPARSE_DEFAULTS row (on a GPU: 128 new edges as moves, 96 ants merged) and the focused search
     (LS_FOCUS_WIDTH); a CPU has no row; explicit settings win; 0 turns the focus off; the
     stored settings pin what resolved, so a resume on another backend builds the same colony."""
     import jax
@@ -255,19 +255,29 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
     assert not is_sparse(tsp.build(tsp.TspSettings("pr2392", iterations=2)).problem)
     row = tsp.sparse_defaults("gpu")
+    assert row.merge_ants >= 2
     st = strategy()
-    assert (st.max_new_edges, st.construction, st.ls_focus_width) == (
-        row.max_new_edges, row.construction, tsp.LS_FOCUS_WIDTH)
+    assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants) == (
+        row.max_new_edges, row.construction, tsp.LS_FOCUS_WIDTH, row.merge_ants)
+    assert strategy(merge_ants=0).merge_ants is None  # 0 turns the row's merging off
+    assert strategy(merge_ants=8).merge_ants == 8
     st = strategy(construction="scan")  # an explicit construction: no row
-    assert (st.max_new_edges, st.construction) == (None, "ants")
+    assert (st.max_new_edges, st.construction, st.merge_ants) == (None, "ants", None)
+    st = strategy(max_new_edges=8, construction="moves")  # explicit edges: no row, no merge
+    assert (st.max_new_edges, st.merge_ants) == (8, None)
     st = tsp.build(tsp.TspSettings("eil51", iterations=2)).strategy  # dense: no row
     assert st.max_new_edges is None
     built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))
     pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
-    assert (pinned["max_new_edges"], pinned["construction"], pinned["ls_focus_width"]) == (
-        32, "moves", tsp.LS_FOCUS_WIDTH)
+    keys = ("max_new_edges", "construction", "ls_focus_width", "merge_ants")
+    assert tuple(pinned[k] for k in keys) == (
+        row.max_new_edges, "moves", tsp.LS_FOCUS_WIDTH, row.merge_ants)
     monkeypatch.undo()
     st = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2,
-                                   **{k: pinned[k] for k in ("max_new_edges", "construction",
-                                                             "ls_focus_width")})).strategy
-    assert (st.max_new_edges, st.construction, st.ls_focus_width) == (32, "moves", 128)
+                                   **{k: pinned[k] for k in keys})).strategy
+    assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants) == (
+        row.max_new_edges, "moves", 128, row.merge_ants)
+    # the CPU's row merges nothing: a pinned CPU run resumes without merging on any backend
+    ck_cpu = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
+    built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))
+    assert tsp.with_resolved_settings(ck_cpu, built).run_info["settings"]["merge_ants"] == 0

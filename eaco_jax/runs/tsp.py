@@ -97,14 +97,22 @@ class SparseRow:
     #: layer's ``SPARSE_MIN_CITIES``, a round size), chosen by ``from_claim``
     from_cities: int | None = None
     from_claim: str = ""
+    #: ants whose improvements are merged into one tour each iteration (0: none), part of
+    #: the measured setting ``claim`` names
+    merge_ants: int = 0
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
-#: instance: on a GPU 32 new edges as moves (best of four), on a CPU 32 new edges city by city
-#: (best of three; full construction: ``--construction scan``); on a CPU the sparse path starts
-#: from 2,000 cities (it beat the dense path at 2,000, 3,000 and 5,000 on selection instances)
+#: instance: on a GPU 128 new edges as moves with the 96 best ants' improvements merged
+#: (lowest mean of three settings over four run seeds), on a CPU 32 new edges city by city
+#: (best of three; full construction: ``--construction scan``). The sparse path starts from
+#: 3,000 cities on a GPU (it beat the dense path there on a selection and a report instance;
+#: smaller sizes are not measured) and from 2,000 on a CPU (it beat the dense path at 2,000,
+#: 3,000 and 5,000 on selection instances)
 SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
-    SparseRow("gpu", 32, "moves", "tsp-10k-h100-moves-32-over-bhh"),
+    SparseRow("gpu", 128, "moves", "tsp-10k-h100-select-mne128-merge96-over-bhh-mean",
+              from_cities=3000, from_claim="tsp-3k-h100-select-sparse-over-bhh-mean",
+              merge_ants=96),
     SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
               from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
 )
@@ -235,9 +243,13 @@ class TspSettings:
                                          "edges each ant changed, evaluating at most this "
                                          "many cities a step; 0: every city, every step "
                                          f"(default {LS_FOCUS_WIDTH})")
-    merge_ants: int = setting(0, "with --max-new-edges: merge the improvements of up to this "
-                              "many ants (largest gains over the best tour, disjoint changes, "
-                              "one tour after the merge) into one tour each iteration; 0: off")
+    merge_ants: int | None = setting(None, "with --max-new-edges: merge the improvements of "
+                                     "up to this many ants (largest gains over the best tour, "
+                                     "disjoint changes, one tour after the merge) into one "
+                                     "tour each iteration; 0: off (default with --construction "
+                                     "auto and no --max-new-edges: " + "; ".join(
+                                         f"{r.merge_ants} on a {r.backend.upper()}"
+                                         for r in SPARSE_DEFAULTS) + "; otherwise 0)")
     chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
                                           "compiled call about this many seconds' worth of "
                                           "iterations at the last call's pace (the sparse "
@@ -256,7 +268,7 @@ class TspSettings:
         if self.ls_focus_width is not None and self.ls_focus_width < 0:
             raise ConfigError(f"ls_focus_width must be >= 0 (0: no focus), got "
                               f"{self.ls_focus_width}; e.g. --ls-focus-width 128")
-        if self.merge_ants < 0 or self.merge_ants == 1:
+        if self.merge_ants is not None and (self.merge_ants < 0 or self.merge_ants == 1):
             raise ConfigError(f"merge_ants must be 0 (off) or >= 2, got {self.merge_ants}; "
                               "e.g. --merge-ants 16")
         if self.clock == "call" and self.max_seconds is None:
@@ -300,16 +312,17 @@ def build(s: TspSettings) -> Built:
     local_search = auto.local_search if s.local_search == "auto" else s.local_search
     ls_best_k = auto.ls_best_k if s.ls_best_k is None else int(s.ls_best_k)
     preset = auto.preset if s.preset == "auto" else s.preset
-    max_new_edges, construction = s.max_new_edges, s.construction
+    max_new_edges, construction, merge = s.max_new_edges, s.construction, s.merge_ants
     if row is not None and is_sparse(problem) and max_new_edges is None \
             and construction == "auto":
         max_new_edges, construction = row.max_new_edges, row.construction
+        merge = row.merge_ants if merge is None else merge
     focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=max_new_edges,
                          ls_focus_width=(focus or None) if max_new_edges is not None else None,
-                         merge_ants=s.merge_ants or None,
+                         merge_ants=merge or None,
                          construction=(construction if construction.startswith("moves")
                                        else "ants"),
                          construction_fallback=("auto" if construction.startswith("moves")
