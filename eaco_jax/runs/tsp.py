@@ -218,8 +218,7 @@ class TspSettings:
                           "and trails on candidate edges only, memory O(n k)), off (n x n "
                           "matrices), auto (on for EUC_2D, CEIL_2D, ATT from " + "; ".join(
                               f"{r.from_cities:,} cities on a {r.backend.upper()}"
-                              for r in SPARSE_DEFAULTS if r.from_cities) + "; from 8,000 "
-                          "elsewhere)",
+                              for r in SPARSE_DEFAULTS if r.from_cities) + ")",
                           choices=("auto", "on", "off"))
     neighbors: int | None = setting(None, "candidate-list length per city (default 20 with a "
                                     "distance matrix, 16 without)")
