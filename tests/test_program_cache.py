@@ -338,3 +338,60 @@ def test_a_compile_cache_that_is_a_file_is_said_once(tmp_path):
     assert lines == [f"warning: compile cache off: EACO_COMPILE_CACHE={afile} is a file, not a "
                      "folder; point it at a writable folder, or pass --no-compile-cache"]
     assert afile.read_text() == "x"
+
+
+def test_the_state_size_comes_from_the_program_traced_exported_or_loaded(cache):
+    """``out_nbytes`` of the initialiser equals the traced state size times the rows, whether
+    the program was traced (cache off), exported now or loaded from disk."""
+    from eaco_jax.driver import memory, rows
+
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="2opt")
+    p = strategy.default_params(problem)
+    one_row = memory.state_row_bytes(strategy, problem, p)
+    assert one_row > 0
+    for seeds, params, n in (([0], None, 1), ([0, 1], None, 2), ([0, 1], [p, p], 4)):
+        for folder in (None, cache, cache):  # traced, exported, loaded
+            program_cache.set_folder(folder)
+            driver.clear_compiled()
+            init, _, _ = rows.compiled_initial(strategy, problem, seeds, params)
+            assert program_cache.out_nbytes(init) == one_row * n, (seeds, params, folder)
+    assert len(list(cache.glob("*.jaxexport"))) == 3  # one initialiser per row layout
+
+
+def test_minimize_sizes_the_state_from_its_program_not_a_second_trace(cache, monkeypatch):
+    """The memory check reads the state's size from the compiled initialiser (a fresh process
+    with the program on disk traces nothing), and still refuses a state too large."""
+    from eaco_jax.driver import memory
+    from eaco_jax.errors import ConfigError
+
+    def traced(*args, **kwargs):
+        raise AssertionError("the initialiser was traced again to size its state")
+
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="2opt")
+    monkeypatch.setattr(memory, "state_row_bytes", traced)
+    for folder in (None, cache, cache):  # traced, exported, loaded
+        program_cache.set_folder(folder)
+        driver.clear_compiled()
+        _run(strategy, problem)
+    monkeypatch.setattr(memory, "_memory_limit", lambda: 2 * 1000)
+    with pytest.raises(ConfigError, match="the colony state needs"):
+        ea.minimize(problem, strategy, seed=0, iterations=2)
+
+
+def test_a_run_looks_its_chunk_up_once_and_searches_the_same(monkeypatch):
+    """One-iteration chunks reuse the compiled chunk once its output state has the input's
+    shapes (no signature and cache lookup per chunk), with the same search as longer chunks."""
+    calls = []
+    real = driver.compiled_chunk
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    problem, strategy = load_tsplib("eil51"), GraphEACO(num_ants=8, local_search="2opt")
+    monkeypatch.setattr(driver, "compiled_chunk", counted)
+    one = ea.minimize(problem, strategy, seed=5, iterations=12, chunk_size=1)
+    assert one.iterations == 12 and 1 <= len(calls) <= 2
+    four = ea.minimize(problem, strategy, seed=5, iterations=12, chunk_size=4)
+    np.testing.assert_array_equal(one.history["best_cost"], four.history["best_cost"])
+    np.testing.assert_array_equal(np.asarray(one.best_solution), np.asarray(four.best_solution))

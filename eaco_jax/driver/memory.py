@@ -76,12 +76,17 @@ def working_set_bytes(strategy: Strategy, problem: Any) -> tuple[int, str]:
     return 0, ""
 
 
-def check_state_memory(strategy: Strategy, problem: Any, rows: int, params: Any) -> None:
+def check_state_memory(strategy: Strategy, problem: Any, rows: int, params: Any,
+                       state_bytes: int | None = None) -> None:
     """Refuse a colony whose state, or state plus one iteration's working set
     (:func:`working_set_bytes`), would not fit in memory (abstract: nothing allocated); warn in
-    one line when one iteration needs more than :data:`WARN_WORKING_SET`."""
+    one line when one iteration needs more than :data:`WARN_WORKING_SET`. ``state_bytes``:
+    the whole state's size where a compiled initialiser already tells it (None: traced here,
+    :func:`state_row_bytes` times ``rows``)."""
     one = params[0] if isinstance(params, list | tuple) else params
-    need, limit = state_row_bytes(strategy, problem, one) * rows, _memory_limit()
+    need = state_row_bytes(strategy, problem, one) * rows if state_bytes is None \
+        else int(state_bytes)
+    limit = _memory_limit()
     colony = f"{type(strategy).__name__}(num_ants={strategy.num_ants})"
     if need > limit // 2:
         raise ConfigError(

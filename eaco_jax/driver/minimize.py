@@ -24,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from eaco_jax.driver import program_cache
 from eaco_jax.driver.interrupt import CompileInterrupted, Signals, interrupt_message
 from eaco_jax.driver.memory import (  # noqa: F401  (re-exported)
     GRAPH_ANT_CITY_BYTES,
@@ -46,12 +47,14 @@ from eaco_jax.driver.programs import (  # noqa: F401  (re-exported)
     compiled_chunk,
     iteration_step,
     make_chunk_fn,
+    signature,
 )
 from eaco_jax.driver.result import Result, host_checks, make_result, shown_best  # noqa: F401
 from eaco_jax.driver.rows import (  # noqa: F401  (re-exported)
     MAX_EVALUATIONS,
     UNCAPPED,
     checked_seeds,
+    compiled_initial,
     default_chunk,
     initial_state,
     initial_state_timed,
@@ -197,8 +200,10 @@ def minimize(
         rules = stop_rules(target, patience, max_seconds, callback, stop, deadline)
         if params is None:
             params = strategy.default_params(problem)
-        check_state_memory(strategy, problem, rows, params)
-        state, init_seconds = initial_state_timed(strategy, problem, seeds, params)
+        init, init_args, init_seconds = compiled_initial(strategy, problem, seeds, params)
+        check_state_memory(strategy, problem, rows, params,
+                           state_bytes=program_cache.out_nbytes(init))
+        state = init(*init_args)
         row_seeds = seeds * n_settings
         return run(strategy, problem, state, total=total, chunk=chunk, seeds=row_seeds,
                    rules=rules, progress=progress, checkpointing=checkpointing,
@@ -317,6 +322,8 @@ def run(
 
     run_seconds = 0.0
     pace = None  # compute seconds per iteration of the last chunk
+    reuse = None  # the compiled chunk, once its output state matched its input's shapes
+    lengths: dict[int, jax.Array] = {}  # chunk lengths as device scalars, made once each
     start = done
     bar = None
     if progress:
@@ -339,11 +346,14 @@ def run(
                         pace, chunk_seconds,
                         time_left(rules or [], Progress(done, run_seconds, compile_seconds))))
                 signals.at = done
-                try:
-                    compiled, seconds = compiled_chunk(strategy, chunk, batched, problem, state,
-                                                       capped, interrupted=signals)
-                except CompileInterrupted:
-                    continue  # the stop reason sees the signal
+                if reuse is not None:  # the state keeps its shapes: no lookup per chunk
+                    compiled, seconds = reuse, 0.0
+                else:
+                    try:
+                        compiled, seconds = compiled_chunk(strategy, chunk, batched, problem,
+                                                           state, capped, interrupted=signals)
+                    except CompileInterrupted:
+                        continue  # the stop reason sees the signal
                 compile_seconds += seconds
                 # a deadline may pass while compiling (not cut short: an abandoned compiler
                 # thread can crash the interpreter's exit)
@@ -351,11 +361,16 @@ def run(
                 if signals() or (seconds > 0 and stopping.before_chunk(state, done, now)):
                     continue
                 t0 = time.perf_counter()
-                args = (problem, state, jnp.int32(length)) + ((budget,) if capped else ())
+                if length not in lengths:
+                    lengths[length] = jnp.int32(length)
+                args = (problem, state, lengths[length]) + ((budget,) if capped else ())
                 signals.at = done + length
                 try:
+                    before = state
                     state, hist = compiled(*args)
                     jax.block_until_ready(state)
+                    if reuse is None and signature(state) == signature(before):
+                        reuse = compiled
                 except jax.errors.JaxRuntimeError as err:
                     oom = out_of_memory(err, strategy, problem, len(seeds))
                     if oom is None:

@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import numpy as np
 from jax import export
 
 _SUFFIX, _MARK = ".jaxexport", ".traced"
@@ -261,6 +262,8 @@ def _checked_first_call(run: Callable, fn: Callable, entry: Path) -> Callable:
         box["run"] = run
         return out
 
+    if getattr(run, "out_nbytes", None) is not None:
+        first.out_nbytes = run.out_nbytes
     return first
 
 
@@ -375,7 +378,27 @@ def _wrap(call: Callable, in_keys: list, out_def: Any, out_keys: list) -> Callab
         out = call(*_key_data(jax.tree.leaves(args), in_keys))
         return jax.tree.unflatten(out_def, _wrap_keys(out, out_keys))
 
+    leaves = jax.tree.leaves(getattr(call, "out_info", None))
+    if len(leaves) == len(out_keys):  # PRNG keys (key data here) are not counted
+        run.out_nbytes = sum(_nbytes(a) for a, k in zip(leaves, out_keys, strict=True) if not k)
     return run
+
+
+def _nbytes(a: Any) -> int:
+    return int(np.prod(a.shape)) * int(np.dtype(a.dtype).itemsize)
+
+
+def out_nbytes(program: Callable) -> int | None:
+    """Bytes of a compiled or loaded program's outputs, PRNG keys not counted (None where the
+    program does not tell): a colony state's size without tracing its initialiser again."""
+    known = getattr(program, "out_nbytes", None)
+    if known is not None:
+        return int(known)
+    info = getattr(program, "out_info", None)
+    if info is None:
+        return None
+    return sum(_nbytes(a) for a in jax.tree.leaves(info)
+               if not jax.dtypes.issubdtype(a.dtype, jax.dtypes.prng_key))
 
 
 def _write(path: Path, data: bytes) -> None:

@@ -144,7 +144,7 @@ def _make_room() -> None:
         gc.collect()
 
 
-def _signature(tree: Any) -> tuple:
+def signature(tree: Any) -> tuple:
     """Shapes, dtypes and shardings of ``tree``'s leaves: what a compiled chunk is bound to."""
     leaves, treedef = jax.tree_util.tree_flatten(tree)
     return treedef, tuple((tuple(np.shape(x)), str(getattr(x, "dtype", type(x))),
@@ -167,7 +167,7 @@ def compiled_chunk(strategy: Strategy, length: int, batched: bool, problem: Any,
     :class:`CompileInterrupted` is raised as soon as the poll says so.
     """
     key = ("chunk", strategy, length, batched, capped, program_cache.trace_flags(),
-           _signature(problem), _signature(state))
+           signature(problem), signature(state))
     args = (problem, state, jnp.int32(length)) + ((budget_arg(None),) if capped else ())
     return _program(_COMPILED, key, lambda: make_chunk_fn(strategy, length, batched, capped),
                     args, strategy, interrupted)
@@ -207,8 +207,8 @@ def compiled_init(strategy: Strategy, rows: str, problem: Any, keys: jax.Array,
     and the seconds spent on it now (0.0 when this process had it):
     ``rows`` "one" (one seed, an unbatched state), "shared" (a row per key, one params) or
     "per_row" (a row per key and params row)."""
-    key = ("init", strategy, rows, program_cache.trace_flags(), _signature(problem),
-           _signature(keys), _signature(params))
+    key = ("init", strategy, rows, program_cache.trace_flags(), signature(problem),
+           signature(keys), signature(params))
 
     def init(keys, problem, params):
         if rows == "one":

@@ -31,6 +31,15 @@ def initial_state(
 def initial_state_timed(strategy: Strategy, problem: Any, seeds: Sequence[int],
                         params: Any | None = None) -> tuple[State, float]:
     """:func:`initial_state` and the seconds spent compiling (or loading) its program."""
+    init, args, seconds = compiled_initial(strategy, problem, seeds, params)
+    return init(*args), seconds
+
+
+def compiled_initial(strategy: Strategy, problem: Any, seeds: Sequence[int],
+                     params: Any | None = None) -> tuple[Any, tuple, float]:
+    """The compiled (or loaded) initialiser of :func:`initial_state`, its arguments (call
+    ``init(*args)`` for the state) and the seconds spent on it now; nothing is run, so the
+    state's size can be checked from the program before anything is allocated."""
     problem = strategy.prepare(problem)
     if isinstance(params, list | tuple):
         for i, p in enumerate(params):
@@ -39,14 +48,14 @@ def initial_state_timed(strategy: Strategy, problem: Any, seeds: Sequence[int],
         flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
         keys = jnp.stack([jax.random.key(int(s)) for s in list(seeds) * len(params)])
         init, seconds = compiled_init(strategy, "per_row", problem, keys, flat)
-        return init(keys, problem, flat), seconds
+        return init, (keys, problem, flat), seconds
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
     if params is None:
         params = strategy.default_params(problem)
     strategy.check_params(params)
     rows = "one" if len(seeds) == 1 else "shared"
     init, seconds = compiled_init(strategy, rows, problem, keys, params)
-    return init(keys, problem, params), seconds
+    return init, (keys, problem, params), seconds
 
 
 def stack_params(params: Sequence[Any]) -> Any:
