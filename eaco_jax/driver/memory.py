@@ -32,11 +32,16 @@ def memory_limit() -> int:
     return _memory_limit()
 
 
+def tree_nbytes(tree: Any) -> int:
+    """Bytes of the arrays (or abstract shapes) in ``tree``, PRNG keys not counted."""
+    return sum(int(np.prod(a.shape)) * np.dtype(a.dtype).itemsize for a in jax.tree.leaves(tree)
+               if hasattr(a, "dtype") and not jnp.issubdtype(a.dtype, jax.dtypes.prng_key))
+
+
 def state_row_bytes(strategy: Strategy, problem: Any, params: Any) -> int:
     """Bytes of one row of the colony state (abstract: nothing allocated)."""
-    shapes = jax.eval_shape(lambda k: strategy.init(k, problem, params), jax.random.key(0))
-    return sum(int(np.prod(a.shape)) * a.dtype.itemsize for a in jax.tree.leaves(shapes)
-               if hasattr(a, "dtype") and not jnp.issubdtype(a.dtype, jax.dtypes.prng_key))
+    return tree_nbytes(jax.eval_shape(lambda k: strategy.init(k, problem, params),
+                                      jax.random.key(0)))
 
 
 #: bytes per ant and city of one graph-colony iteration besides the state (construction's tours,

@@ -43,8 +43,9 @@ from pathlib import Path
 from typing import Any
 
 import jax
-import numpy as np
 from jax import export
+
+from eaco_jax.driver.memory import tree_nbytes
 
 _SUFFIX, _MARK = ".jaxexport", ".traced"
 _UNSET = object()
@@ -380,12 +381,9 @@ def _wrap(call: Callable, in_keys: list, out_def: Any, out_keys: list) -> Callab
 
     leaves = jax.tree.leaves(getattr(call, "out_info", None))
     if len(leaves) == len(out_keys):  # PRNG keys (key data here) are not counted
-        run.out_nbytes = sum(_nbytes(a) for a, k in zip(leaves, out_keys, strict=True) if not k)
+        run.out_nbytes = tree_nbytes([a for a, k in zip(leaves, out_keys, strict=True)
+                                      if not k])
     return run
-
-
-def _nbytes(a: Any) -> int:
-    return int(np.prod(a.shape)) * int(np.dtype(a.dtype).itemsize)
 
 
 def out_nbytes(program: Callable) -> int | None:
@@ -395,10 +393,7 @@ def out_nbytes(program: Callable) -> int | None:
     if known is not None:
         return int(known)
     info = getattr(program, "out_info", None)
-    if info is None:
-        return None
-    return sum(_nbytes(a) for a in jax.tree.leaves(info)
-               if not jax.dtypes.issubdtype(a.dtype, jax.dtypes.prng_key))
+    return None if info is None else tree_nbytes(info)
 
 
 def _write(path: Path, data: bytes) -> None:
