@@ -217,8 +217,8 @@ def read_settings(ck):
 
 def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypatch):
     """A sparse run left on --construction auto without --max-new-edges gets its backend's
-    SPARSE_DEFAULTS row (on a GPU: 128 new edges as moves, 96 ants merged) and the focused search
-    (LS_FOCUS_WIDTH); a CPU has no row; explicit settings win; 0 turns the focus off; the
+    SPARSE_DEFAULTS row (on a GPU: 128 new edges as moves, 384 ants, 96 merged) and the focused
+    search (LS_FOCUS_WIDTH); a CPU has no row; explicit settings win; 0 turns the focus off; the
     stored settings pin what resolved, so a resume on another backend builds the same colony."""
     import jax
 
@@ -261,22 +261,26 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
         row.max_new_edges, row.construction, tsp.LS_FOCUS_WIDTH, row.merge_ants)
     assert strategy(merge_ants=0).merge_ants is None  # 0 turns the row's merging off
     assert strategy(merge_ants=8).merge_ants == 8
+    assert row.ants is not None and st.num_ants == row.ants  # the row's colony size
+    assert row.ants != tsp.colony_defaults(51, "gpu").ants  # (else the check above is idle)
+    assert strategy(ants=40).num_ants == 40  # an explicit --ants wins over the row
     st = strategy(construction="scan")  # an explicit construction: no row
     assert (st.max_new_edges, st.construction, st.merge_ants) == (None, "ants", None)
+    assert st.num_ants == tsp.colony_defaults(51, "gpu").ants
     st = strategy(max_new_edges=8, construction="moves")  # explicit edges: no row, no merge
     assert (st.max_new_edges, st.merge_ants) == (8, None)
     st = tsp.build(tsp.TspSettings("eil51", iterations=2)).strategy  # dense: no row
     assert st.max_new_edges is None
     built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))
     pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
-    keys = ("max_new_edges", "construction", "ls_focus_width", "merge_ants")
+    keys = ("max_new_edges", "construction", "ls_focus_width", "merge_ants", "ants")
     assert tuple(pinned[k] for k in keys) == (
-        row.max_new_edges, "moves", tsp.LS_FOCUS_WIDTH, row.merge_ants)
+        row.max_new_edges, "moves", tsp.LS_FOCUS_WIDTH, row.merge_ants, row.ants)
     monkeypatch.undo()
     st = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2,
                                    **{k: pinned[k] for k in keys})).strategy
-    assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants) == (
-        row.max_new_edges, "moves", 128, row.merge_ants)
+    assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants,
+            st.num_ants) == (row.max_new_edges, "moves", 128, row.merge_ants, row.ants)
     # the CPU's row merges nothing: a pinned CPU run resumes without merging on any backend
     ck_cpu = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
     built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))

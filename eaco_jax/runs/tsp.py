@@ -100,11 +100,16 @@ class SparseRow:
     #: ants whose improvements are merged into one tour each iteration (0: none), part of
     #: the measured setting ``claim`` names
     merge_ants: int = 0
+    #: the colony size with this row (``--ants`` left out; None: :data:`COLONY_DEFAULTS`),
+    #: chosen by ``ants_claim``
+    ants: int | None = None
+    ants_claim: str = ""
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
 #: instance: on a GPU 128 new edges as moves with the 96 best ants' improvements merged
-#: (lowest mean of three settings over four run seeds), on a CPU 32 new edges city by city
+#: (lowest mean of three settings over four run seeds) and 384 ants (lowest mean of four
+#: settings over three run seeds), on a CPU 32 new edges city by city
 #: (best of three; full construction: ``--construction scan``). The sparse path starts from
 #: 3,000 cities on a GPU (it beat the dense path there on a selection and a report instance;
 #: smaller sizes are not measured) and from 2,000 on a CPU (it beat the dense path at 2,000,
@@ -112,7 +117,7 @@ class SparseRow:
 SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
     SparseRow("gpu", 128, "moves", "tsp-10k-h100-select-mne128-merge96-over-bhh-mean",
               from_cities=3000, from_claim="tsp-3k-h100-select-sparse-over-bhh-mean",
-              merge_ants=96),
+              merge_ants=96, ants=384, ants_claim="tsp-10k-h100-select-ants384-over-bhh-mean"),
     SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
               from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
 )
@@ -182,8 +187,12 @@ PACED_CHUNK = 64
 class TspSettings:
     instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
                             positional=True, metavar="FILE_OR_NAME")
-    ants: int | None = setting(None, f"colony size (auto: {auto_help('ants')}; chosen for "
-                               "the shortest tour within a time budget, docs/results.md)")
+    ants: int | None = setting(None, f"colony size (auto: {auto_help('ants')}"
+                               + "".join(f"; {r.ants} on the sparse path's default on a "
+                                         f"{r.backend.upper()}"
+                                         for r in SPARSE_DEFAULTS if r.ants)
+                               + "; chosen for the shortest tour within a time budget, "
+                               "docs/results.md)")
     iterations: int | None = setting(None, f"iterations (default {ITERATIONS}; with "
                                      "--max-seconds alone, no cap: time ends the run)")
     seed: int = setting(0, "random seed")
@@ -316,6 +325,8 @@ def build(s: TspSettings) -> Built:
             and construction == "auto":
         max_new_edges, construction = row.max_new_edges, row.construction
         merge = row.merge_ants if merge is None else merge
+        if s.ants is None and row.ants is not None:
+            ants = row.ants
     focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
