@@ -264,6 +264,17 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     assert row.ants is not None and st.num_ants == row.ants  # the row's colony size
     assert row.ants != tsp.colony_defaults(51, "gpu").ants  # (else the check above is idle)
     assert strategy(ants=40).num_ants == 40  # an explicit --ants wins over the row
+    # past the row's bound the size table decides (384 ants at 100,000 cities exceed the memory
+    # check on an 80 GB card)
+    assert tsp.row_ants(row, 51) == row.ants and row.ants_below <= 100_000
+    assert tsp.row_ants(row, 100_000) is None and tsp.row_ants(row, row.ants_below) is None
+    assert tsp.row_ants(row, row.ants_below - 1) == row.ants
+    import dataclasses
+
+    small = dataclasses.replace(row, ants_below=51)  # eil51 at the bound: build leaves the row's
+    monkeypatch.setattr(tsp, "SPARSE_DEFAULTS", (small,))
+    assert strategy().num_ants == tsp.colony_defaults(51, "gpu").ants
+    monkeypatch.setattr(tsp, "SPARSE_DEFAULTS", (row,))
     st = strategy(construction="scan")  # an explicit construction: no row
     assert (st.max_new_edges, st.construction, st.merge_ants) == (None, "ants", None)
     assert st.num_ants == tsp.colony_defaults(51, "gpu").ants

@@ -290,6 +290,28 @@ def test_tsp_colony_whose_iteration_does_not_fit_is_refused_up_front():
     assert len(err) == 1 and err[0].startswith("error:") and "use fewer ants" in err[0]
 
 
+def test_focused_search_is_charged_for_the_cities_it_scans():
+    """A focused search (ls_focus_width) evaluates at most that many cities' moves a step: the
+    estimate charged every city's, which refused 384 ants at 100,000 cities (an estimated 51
+    GiB against a measured 0.7 GB peak for 96 ants)."""
+    from eaco_jax.driver.memory import (
+        GRAPH_ANT_CITY_BYTES,
+        LS_CANDIDATE_BYTES,
+        LS_CITY_BYTES,
+        working_set_bytes,
+    )
+
+    p = load_tsplib("pr1002")
+    k = int(p.neighbors.shape[-1])
+    full = GraphEACO(num_ants=64, local_search="or-2opt", max_new_edges=8)
+    focused = GraphEACO(num_ants=64, local_search="or-2opt", max_new_edges=8, ls_focus_width=32)
+    n, m = 1002, 64
+    assert working_set_bytes(full, p)[0] == m * n * (
+        GRAPH_ANT_CITY_BYTES + LS_CITY_BYTES + LS_CANDIDATE_BYTES * k)
+    assert working_set_bytes(focused, p)[0] == m * (
+        n * (GRAPH_ANT_CITY_BYTES + LS_CITY_BYTES) + 32 * LS_CANDIDATE_BYTES * k)
+
+
 def test_out_of_memory_in_a_chunk_is_one_line():
     """A real XLA RESOURCE_EXHAUSTED (a buffer of terabytes) inside the compiled chunk."""
     p = ConstrainedProblem(

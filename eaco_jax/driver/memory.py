@@ -70,7 +70,10 @@ def working_set_bytes(strategy: Strategy, problem: Any) -> tuple[int, str]:
             searched = min(m, int(getattr(strategy, "ls_best_k", None) or m))
             width = int(getattr(problem, "neighbors", np.zeros((n, 0))).shape[-1])
             scanned = min(width, int(getattr(strategy, "ls_neighbors", None) or width))
-            work += searched * n * (LS_CITY_BYTES + LS_CANDIDATE_BYTES * scanned)
+            # a focused search (ls_focus_width) evaluates the moves of at most that many
+            # cities a step: its per-candidate arrays are focus x candidates, not n x candidates
+            focus = min(n, int(getattr(strategy, "ls_focus_width", None) or n))
+            work += searched * (n * LS_CITY_BYTES + focus * LS_CANDIDATE_BYTES * scanned)
             what += f" and searching {searched} of them"
         return work, what
     if getattr(problem, "kind", None) == "continuous" and getattr(strategy, "refine_ants", 0):

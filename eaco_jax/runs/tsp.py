@@ -101,15 +101,18 @@ class SparseRow:
     #: the measured setting ``claim`` names
     merge_ants: int = 0
     #: the colony size with this row (``--ants`` left out; None: :data:`COLONY_DEFAULTS`),
-    #: chosen by ``ants_claim``
+    #: chosen by ``ants_claim``, below ``ants_below`` cities (None: any size)
     ants: int | None = None
     ants_claim: str = ""
+    ants_below: int | None = None
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
 #: instance: on a GPU 128 new edges as moves with the 96 best ants' improvements merged
 #: (lowest mean of three settings over four run seeds) and 384 ants (lowest mean of four
-#: settings over three run seeds), on a CPU 32 new edges city by city
+#: settings over three run seeds; measured up to 15,112 cities, and at 100,000 cities 384 ants
+#: exceed the memory check on an 80 GB card, so the bound lies between), on a CPU 32 new edges
+#: city by city
 #: (best of three; full construction: ``--construction scan``). The sparse path starts from
 #: 3,000 cities on a GPU (it beat the dense path there on a selection and a report instance;
 #: smaller sizes are not measured) and from 2,000 on a CPU (it beat the dense path at 2,000,
@@ -117,7 +120,8 @@ class SparseRow:
 SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
     SparseRow("gpu", 128, "moves", "tsp-10k-h100-select-mne128-merge96-over-bhh-mean",
               from_cities=3000, from_claim="tsp-3k-h100-select-sparse-over-bhh-mean",
-              merge_ants=96, ants=384, ants_claim="tsp-10k-h100-select-ants384-over-bhh-mean"),
+              merge_ants=96, ants=384, ants_claim="tsp-10k-h100-select-ants384-over-bhh-mean",
+              ants_below=20000),
     SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
               from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
 )
@@ -131,6 +135,11 @@ def sparse_defaults(backend: str) -> SparseRow | None:
     """The :data:`SPARSE_DEFAULTS` row of ``backend`` (None: full construction)."""
     kind = "cpu" if backend == "cpu" else "gpu"
     return next((r for r in SPARSE_DEFAULTS if r.backend == kind), None)
+
+
+def row_ants(row: SparseRow, n: int) -> int | None:
+    """The colony size ``row`` sets for ``n`` cities (None: :data:`COLONY_DEFAULTS` decides)."""
+    return row.ants if row.ants_below is None or n < row.ants_below else None
 
 
 def _best(k: int | None) -> str:
@@ -190,6 +199,8 @@ class TspSettings:
     ants: int | None = setting(None, f"colony size (auto: {auto_help('ants')}"
                                + "".join(f"; {r.ants} on the sparse path's default on a "
                                          f"{r.backend.upper()}"
+                                         + (f" below {r.ants_below:,} cities" if r.ants_below
+                                            else "")
                                          for r in SPARSE_DEFAULTS if r.ants)
                                + "; chosen for the shortest tour within a time budget, "
                                "docs/results.md)")
@@ -325,8 +336,8 @@ def build(s: TspSettings) -> Built:
             and construction == "auto":
         max_new_edges, construction = row.max_new_edges, row.construction
         merge = row.merge_ants if merge is None else merge
-        if s.ants is None and row.ants is not None:
-            ants = row.ants
+        if s.ants is None and row_ants(row, int(problem.n)) is not None:
+            ants = row_ants(row, int(problem.n))
     focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
