@@ -85,7 +85,7 @@ def test_every_colony_default_row_names_a_claim():
     assert COLONY_DEFAULTS and all(row.claim in ids for row in COLONY_DEFAULTS)
     assert SPARSE_DEFAULTS and all(row.claim in ids for row in SPARSE_DEFAULTS)
     assert all(row.from_claim in ids for row in SPARSE_DEFAULTS if row.from_cities)
-    assert all(row.ants_claim in ids for row in SPARSE_DEFAULTS if row.ants)
+    assert all(band.claim in ids for row in SPARSE_DEFAULTS for band in row.ants)
     assert LS_FOCUS_CLAIM in ids
 
 

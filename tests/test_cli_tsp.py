@@ -217,7 +217,7 @@ def read_settings(ck):
 
 def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypatch):
     """A sparse run left on --construction auto without --max-new-edges gets its backend's
-    SPARSE_DEFAULTS row (on a GPU: 128 new edges as moves, 384 ants, 96 merged) and the focused
+    SPARSE_DEFAULTS row (on a GPU: 128 new edges as moves, ants by size, 96 merged) and the focused
     search (LS_FOCUS_WIDTH); a CPU has no row; explicit settings win; 0 turns the focus off; the
     stored settings pin what resolved, so a resume on another backend builds the same colony."""
     import jax
@@ -261,17 +261,20 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
         row.max_new_edges, row.construction, tsp.LS_FOCUS_WIDTH, row.merge_ants)
     assert strategy(merge_ants=0).merge_ants is None  # 0 turns the row's merging off
     assert strategy(merge_ants=8).merge_ants == 8
-    assert row.ants is not None and st.num_ants == row.ants  # the row's colony size
-    assert row.ants != tsp.colony_defaults(51, "gpu").ants  # (else the check above is idle)
+    first, last = row.ants[0], row.ants[-1]
+    assert st.num_ants == first.ants  # the row's colony size for 51 cities
+    assert first.ants != tsp.colony_defaults(51, "gpu").ants  # (else the check above is idle)
     assert strategy(ants=40).num_ants == 40  # an explicit --ants wins over the row
-    # past the row's bound the size table decides (384 ants at 100,000 cities exceed the memory
-    # check on an 80 GB card)
-    assert tsp.row_ants(row, 51) == row.ants and row.ants_below <= 100_000
-    assert tsp.row_ants(row, 100_000) is None and tsp.row_ants(row, row.ants_below) is None
-    assert tsp.row_ants(row, row.ants_below - 1) == row.ants
+    # the bands by size; past the last the size table decides (100,000 cities: measured with
+    # the table's colony)
+    assert [b.below for b in row.ants] == sorted(b.below for b in row.ants)
+    for lo, hi in zip(row.ants, row.ants[1:], strict=False):
+        assert tsp.row_ants(row, lo.below - 1) == lo.ants and tsp.row_ants(row, lo.below) == hi.ants
+    assert last.below <= 100_000 and tsp.row_ants(row, 100_000) is None
+    assert tsp.row_ants(row, last.below) is None and tsp.row_ants(row, last.below - 1) == last.ants
     import dataclasses
 
-    small = dataclasses.replace(row, ants_below=51)  # eil51 at the bound: build leaves the row's
+    small = dataclasses.replace(row, ants=(tsp.AntsBand(51, 7, ""),))  # eil51 past the band
     monkeypatch.setattr(tsp, "SPARSE_DEFAULTS", (small,))
     assert strategy().num_ants == tsp.colony_defaults(51, "gpu").ants
     monkeypatch.setattr(tsp, "SPARSE_DEFAULTS", (row,))
@@ -286,12 +289,12 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
     keys = ("max_new_edges", "construction", "ls_focus_width", "merge_ants", "ants")
     assert tuple(pinned[k] for k in keys) == (
-        row.max_new_edges, "moves", tsp.LS_FOCUS_WIDTH, row.merge_ants, row.ants)
+        row.max_new_edges, "moves", tsp.LS_FOCUS_WIDTH, row.merge_ants, row.ants[0].ants)
     monkeypatch.undo()
     st = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2,
                                    **{k: pinned[k] for k in keys})).strategy
     assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants,
-            st.num_ants) == (row.max_new_edges, "moves", 128, row.merge_ants, row.ants)
+            st.num_ants) == (row.max_new_edges, "moves", 128, row.merge_ants, row.ants[0].ants)
     # the CPU's row merges nothing: a pinned CPU run resumes without merging on any backend
     ck_cpu = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
     built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))

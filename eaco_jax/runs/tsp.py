@@ -84,6 +84,15 @@ COLONY_DEFAULTS: tuple[ColonyRow, ...] = (
 
 
 @dataclasses.dataclass(frozen=True)
+class AntsBand:
+    """A colony size for sparse runs of fewer than ``below`` cities, chosen by ``claim``."""
+
+    below: int
+    ants: int
+    claim: str
+
+
+@dataclasses.dataclass(frozen=True)
 class SparseRow:
     """What a sparse-path run on ``backend`` ("cpu", or "gpu" for any accelerator) resolves
     ``--max-new-edges`` (left out) and ``--construction auto`` to, named by the claim whose
@@ -100,19 +109,18 @@ class SparseRow:
     #: ants whose improvements are merged into one tour each iteration (0: none), part of
     #: the measured setting ``claim`` names
     merge_ants: int = 0
-    #: the colony size with this row (``--ants`` left out; None: :data:`COLONY_DEFAULTS`),
-    #: chosen by ``ants_claim``, below ``ants_below`` cities (None: any size)
-    ants: int | None = None
-    ants_claim: str = ""
-    ants_below: int | None = None
+    #: the colony size with this row (``--ants`` left out) by size: the first band whose
+    #: ``below`` exceeds the cities; past the last band :data:`COLONY_DEFAULTS` decides
+    ants: tuple[AntsBand, ...] = ()
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
 #: instance: on a GPU 128 new edges as moves with the 96 best ants' improvements merged
-#: (lowest mean of three settings over four run seeds) and 384 ants (lowest mean of four
-#: settings over three run seeds; measured up to 15,112 cities, and at 100,000 cities 384 ants
-#: exceed the memory check on an 80 GB card, so the bound lies between), on a CPU 32 new edges
-#: city by city
+#: (lowest mean of three settings over four run seeds), with 1,536 ants below 8,000 cities
+#: (chosen on the 5k selection instance) and 384 below 20,000 (on the 10k one), each the lowest
+#: mean of three or four colony sizes over three run seeds; the bounds lie between measured
+#: sizes (6,000 and 10,000; 15,112 and 100,000, where the 96-ant colony was measured). On a CPU
+#: 32 new edges city by city
 #: (best of three; full construction: ``--construction scan``). The sparse path starts from
 #: 3,000 cities on a GPU (it beat the dense path there on a selection and a report instance;
 #: smaller sizes are not measured) and from 2,000 on a CPU (it beat the dense path at 2,000,
@@ -120,8 +128,9 @@ class SparseRow:
 SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
     SparseRow("gpu", 128, "moves", "tsp-10k-h100-select-mne128-merge96-over-bhh-mean",
               from_cities=3000, from_claim="tsp-3k-h100-select-sparse-over-bhh-mean",
-              merge_ants=96, ants=384, ants_claim="tsp-10k-h100-select-ants384-over-bhh-mean",
-              ants_below=20000),
+              merge_ants=96,
+              ants=(AntsBand(8000, 1536, "tsp-5k-h100-select-ants1536-over-bhh-mean"),
+                    AntsBand(20000, 384, "tsp-10k-h100-select-ants384-over-bhh-mean"))),
     SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
               from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
 )
@@ -139,7 +148,7 @@ def sparse_defaults(backend: str) -> SparseRow | None:
 
 def row_ants(row: SparseRow, n: int) -> int | None:
     """The colony size ``row`` sets for ``n`` cities (None: :data:`COLONY_DEFAULTS` decides)."""
-    return row.ants if row.ants_below is None or n < row.ants_below else None
+    return next((b.ants for b in row.ants if n < b.below), None)
 
 
 def _best(k: int | None) -> str:
@@ -197,10 +206,10 @@ class TspSettings:
     instance: str = setting("eil51", "a .tsp file or a bundled instance name (eil51)",
                             positional=True, metavar="FILE_OR_NAME")
     ants: int | None = setting(None, f"colony size (auto: {auto_help('ants')}"
-                               + "".join(f"; {r.ants} on the sparse path's default on a "
-                                         f"{r.backend.upper()}"
-                                         + (f" below {r.ants_below:,} cities" if r.ants_below
-                                            else "")
+                               + "".join(f"; on the sparse path's default on a "
+                                         f"{r.backend.upper()} "
+                                         + ", ".join(f"{b.ants} below {b.below:,} cities"
+                                                     for b in r.ants)
                                          for r in SPARSE_DEFAULTS if r.ants)
                                + "; chosen for the shortest tour within a time budget, "
                                "docs/results.md)")
