@@ -15,6 +15,7 @@ Scripts run from the repository root as ``python experiments/NAME.py``; Python p
   (CEC2006 SP) and :func:`stuck_fraction` (premature convergence).
 * Files: :func:`device_info` names the device and versions for the JSON files, which
   :func:`write_results` writes.
+* Processes: :func:`eaco_tsp` runs one fresh ``eaco tsp`` process and returns its record.
 """
 
 from __future__ import annotations
@@ -25,7 +26,9 @@ import math
 import os
 import platform
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -88,6 +91,30 @@ def write_results(path: Path, rows: list, **extra) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps({**extra, "info": device_info(), "argv": sys.argv[1:],
                                 "rows": rows}, indent=1) + "\n")
+
+
+def eaco_tsp(args: Sequence[Any], *, timeout: float | None = None, env: dict | None = None,
+             cwd: str | Path | None = None) -> dict:
+    """One fresh ``python -m eaco_jax tsp ARGS --out TMP`` process: ``record`` (its
+    result.json without the tour; None when it failed), ``wall_seconds`` (the process, exit
+    included), ``error`` (None, the end of its stderr, or the timeout) and ``argv`` (from
+    ``tsp`` on)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        argv = [sys.executable, "-m", "eaco_jax", "tsp", *map(str, args), "--out", tmp]
+        t0 = time.perf_counter()
+        try:
+            done = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, env=env,
+                                  cwd=cwd)
+        except subprocess.TimeoutExpired:
+            return {"record": None, "wall_seconds": timeout, "argv": argv[2:],
+                    "error": f"killed after --process-timeout {timeout} s"}
+        wall = time.perf_counter() - t0
+        if done.returncode:
+            return {"record": None, "wall_seconds": wall, "argv": argv[2:],
+                    "error": done.stderr.strip()[-500:]}
+        rec = json.loads((Path(tmp) / "result.json").read_text())
+    rec.pop("tour", None)
+    return {"record": rec, "wall_seconds": wall, "error": None, "argv": argv[2:]}
 
 
 def enable_compile_cache(path: Path | None) -> None:

@@ -24,13 +24,10 @@ import datetime
 import json
 import math
 import shlex
-import subprocess
 import sys
-import tempfile
-import time
 from pathlib import Path
 
-from common import t_ci, write_results
+from common import eaco_tsp, t_ci, write_results
 from tsp_large import BHH, SIDE, random_instance
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "equal_iterations.json"
@@ -38,17 +35,10 @@ RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "equal_ite
 
 def run_arm(path: Path, iterations: int, seed: int, args: list[str]) -> dict:
     """One fresh ``eaco tsp`` process of ``iterations`` iterations: its record (no tour)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        argv = [sys.executable, "-m", "eaco_jax", "tsp", str(path), "--iterations",
-                str(iterations), "--seed", str(seed), "--out", tmp, *args]
-        t0 = time.perf_counter()
-        done = subprocess.run(argv, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
-        if done.returncode:
-            return {"seed": seed, "error": done.stderr.strip()[-500:], "argv": argv[2:]}
-        rec = json.loads((Path(tmp) / "result.json").read_text())
-    rec.pop("tour", None)
-    return {**rec, "wall_seconds": wall, "argv": argv[2:]}
+    done = eaco_tsp([path, "--iterations", iterations, "--seed", seed, *args])
+    if done["error"]:
+        return {"seed": seed, "error": done["error"], "argv": done["argv"]}
+    return {**done["record"], "wall_seconds": done["wall_seconds"], "argv": done["argv"]}
 
 
 def summarize(rows: list[dict], labels: list[str], marks: list[int]) -> dict:

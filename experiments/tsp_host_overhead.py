@@ -27,7 +27,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import REPO, write_results
+from common import REPO, eaco_tsp, write_results
 
 CHUNK_CODE = r"""
 import json, sys, time
@@ -65,13 +65,11 @@ def setup_runs(src: Path, instance: Path, iterations: int, repeats: int, extra: 
                cache: Path) -> list[dict]:
     rows = []
     for i in range(repeats + 1):  # the first fills the caches and is discarded
-        with tempfile.TemporaryDirectory() as tmp:
-            cmd = [sys.executable, "-m", "eaco_jax", "tsp", str(instance.resolve()),
-                   "--iterations", str(iterations), "--seed", "0", "--quiet", "--out", tmp,
-                   *extra]
-            subprocess.run(cmd, env=env_for(src, cache), check=True, capture_output=True,
-                           cwd=tempfile.gettempdir())
-            rec = json.loads((Path(tmp) / "result.json").read_text())
+        done = eaco_tsp([instance.resolve(), "--iterations", iterations, "--seed", 0, "--quiet",
+                         *extra], env=env_for(src, cache), cwd=tempfile.gettempdir())
+        if done["error"]:
+            raise RuntimeError(f"eaco tsp failed: {done['error']}")
+        rec = done["record"]
         if i:
             rows.append({**rec["timing"], "best_length": rec.get("best_length")})
     return rows

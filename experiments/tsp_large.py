@@ -36,14 +36,11 @@ import argparse
 import datetime
 import json
 import math
-import subprocess
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
-from common import data_dirs, write_results
+from common import data_dirs, eaco_tsp, write_results
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large.json"
 #: the side of the random instances' square, and the BHH constant of a random uniform tour
@@ -103,27 +100,17 @@ def known_optimum(path: Path) -> float | None:
 def run_one(path: Path, seconds: float, seed: int, extra: list[str],
             timeout: float | None = None, clock: str = "call") -> dict:
     """One fresh ``eaco tsp`` process: its record (without the tour) and the wall clock."""
-    with tempfile.TemporaryDirectory() as tmp:
-        argv = [sys.executable, "-m", "eaco_jax", "tsp", str(path), "--max-seconds",
-                str(seconds), "--clock", clock, "--seed", str(seed), "--out", tmp, *extra]
-        t0 = time.perf_counter()
-        try:
-            done = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
-        except subprocess.TimeoutExpired:
-            return {"instance": path.stem, "seed": seed, "wall_seconds": timeout,
-                    "clock": clock, "budget_seconds": seconds,
-                    "error": f"killed after --process-timeout {timeout} s"}
-        wall = time.perf_counter() - t0
-        if done.returncode:
-            return {"instance": path.stem, "seed": seed, "error": done.stderr.strip()[-500:],
-                    "wall_seconds": wall, "clock": clock, "budget_seconds": seconds}
-        rec = json.loads((Path(tmp) / "result.json").read_text())
-    rec.pop("tour", None)
+    done = eaco_tsp([path, "--max-seconds", seconds, "--clock", clock, "--seed", seed, *extra],
+                    timeout=timeout)
+    if done["error"]:
+        return {"instance": path.stem, "seed": seed, "error": done["error"],
+                "wall_seconds": done["wall_seconds"], "clock": clock, "budget_seconds": seconds}
+    rec = done["record"]
     history = rec.pop("history_best", [])
     timing = rec.get("timing") or {}
-    return {**rec, "wall_seconds": wall, "budget_seconds": seconds,
+    return {**rec, "wall_seconds": done["wall_seconds"], "budget_seconds": seconds,
             "clock": timing.get("clock", "run"), "call_seconds": timing.get("total_seconds"),
-            "history_points": len(history), "argv": argv[2:]}
+            "history_points": len(history), "argv": done["argv"]}
 
 
 def score(row: dict, path: Path, n: int, optimum: float | None,
