@@ -249,6 +249,21 @@ def test_a_gait_library_with_a_bad_vector_is_one_line_naming_the_entry(tmp_path)
         wr.load_walk_gaits(tmp_path / "short.json")
 
 
+def test_bend_cap_slows_the_step_before_a_bend_by_its_turn():
+    route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.5, 2.5]])
+    c = wr.Controller(bend_distance=1.0, slow_deg=0.0, stop_deg=90.0, min_step=0.4)
+    at_bend = wr.bend_cap(route, 0, np.array([2.0, 0.0]), c)  # a 90 deg left turn, reached
+    assert at_bend == pytest.approx(0.4) == pytest.approx(wr.step_fraction(math.pi / 2, c))
+    half = wr.bend_cap(route, 0, np.array([1.5, 0.0]), c)  # half the distance: 45 deg
+    assert half == pytest.approx(wr.step_fraction(math.pi / 4, c)) == pytest.approx(0.7)
+    assert wr.bend_cap(route, 0, np.array([0.5, 0.0]), c) == 1.0  # farther than bend_distance
+    assert wr.bend_cap(route, 2, np.array([1.0, 2.3]), c) == 1.0  # the last segment: no bend
+    assert wr.bend_cap(route, 0, np.array([2.0, 0.0]), wr.Controller()) == 1.0  # 0: off
+    assert wr.Controller().bend_distance == 0.0  # off until measured
+    with pytest.raises(ConfigError, match="bend_distance must be a finite number >= 0"):
+        wr.Controller(bend_distance=-0.5)
+
+
 def test_walk_settings_default_to_the_controller_defaults():
     import dataclasses
 

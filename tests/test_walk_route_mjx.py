@@ -96,6 +96,15 @@ def test_jax_controller_decides_as_the_native_one():
         assert wr.MODES[int(got[0])] == want.mode
         assert float(got[2]) == pytest.approx(want.step, abs=1e-5)
     route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.5, 2.5]])
+    cb = wr.Controller(bend_distance=1.2)
+    cap = jax.jit(lambda s, p: wm._bend_cap(jnp.asarray(route, jnp.float32), s, p, cb))
+    caps = []
+    for _ in range(200):
+        seg, pos = int(rng.integers(3)), rng.uniform(-0.5, 2.8, 2)
+        caps.append(wr.bend_cap(route, seg, pos, cb))
+        assert float(cap(jnp.int32(seg), jnp.asarray(pos, jnp.float32))) == pytest.approx(
+            caps[-1], abs=1e-5)
+    assert min(caps) < 0.9 and max(caps) == 1.0  # both sides of the comparison were exercised
     ctrl = wr.Controller()
     track = jax.jit(lambda s, p: wm._track(jnp.asarray(route, jnp.float32), s, p, ctrl))
     for _ in range(200):
@@ -180,6 +189,37 @@ def test_mjx_walk_follows_the_native_walk_in_the_nominal_world(tiny):
     for key in ("success", "fell", "contact", "walked_time_s", "gait_switches"):
         assert rec[key] == nat[key], key
     assert rec["closest_approach_m"] == pytest.approx(nat["closest_approach_m"], abs=1e-3)
+
+
+def _native_decisions(nao, ctrl):
+    heading = wr.start_heading(TINY, AROUND)
+    model = sw.scene_model(TINY, nao, start_heading=heading)
+    dec: list = []
+    wr.walk(TINY, AROUND, nao, wr.load_walk_gaits("nao"), ctrl, max_time=WALK_TIME,
+            model=model, decisions=dec)
+    return dec, model, heading
+
+
+def test_bend_distance_shortens_the_step_before_the_first_corner(nao):
+    """The native walk applies bend_cap: before the first corner (segment 0) its forward
+    steps are shorter than without it. Decisions: (time, segment, error, mode, steer, step)."""
+    off, _, _ = _native_decisions(nao, wr.Controller())
+    on, _, _ = _native_decisions(nao, wr.Controller(bend_distance=1.5))
+    assert min(d[5] for d in on if d[1] == 0) < min(d[5] for d in off if d[1] == 0) - 0.05
+
+
+@pytest.mark.slow
+def test_mjx_walk_applies_bend_distance_as_the_native_walk(nao):
+    ctrl = wr.Controller(bend_distance=1.5)
+    native, model, heading = _native_decisions(nao, ctrl)
+    batch = wm.nominal_batch(model, nao, AROUND[0], heading)
+    out = wm.walk_batch(TINY, AROUND, nao, wr.load_walk_gaits("nao"), ctrl, batch,
+                        max_time=WALK_TIME, model=model)
+    ours = wm.decisions(out)
+    assert len(ours) == len(native) >= 7
+    for n, m in zip(native, ours, strict=True):
+        assert (n[0], n[1], n[3]) == (m[0], m[1], m[3])
+        assert (m[4], m[5]) == pytest.approx((n[4], n[5]), abs=1e-3)
 
 
 @pytest.mark.slow

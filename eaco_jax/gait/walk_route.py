@@ -168,6 +168,10 @@ class Controller:
     stop_deg: float = 120.0  # ... to min_step of its length at this error and beyond
     min_step: float = 0.35
     goal_turn_deg: float = 60.0  # within lookahead of the goal: turn_deg (180: never)
+    #: within this distance [m] of a bend the forward step is capped as if the heading error
+    #: were the bend's turn times the fraction of the distance already covered (0: off; not
+    #: yet measured, so off by default)
+    bend_distance: float = 0.0
     blend_cycles: float = 0.5
     goal_radius: float = 0.15
 
@@ -192,6 +196,9 @@ class Controller:
                               f"got {self.slow_deg}")
         if not 0 < self.min_step <= 1:
             raise ConfigError(f"controller min_step must be in (0, 1], got {self.min_step}")
+        if not (math.isfinite(self.bend_distance) and self.bend_distance >= 0):
+            raise ConfigError(f"controller bend_distance must be a finite number >= 0 (0: off),"
+                              f" got {self.bend_distance!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -246,9 +253,27 @@ def choose(error: float, mode: str, ctrl: Controller) -> Choice:
     if abs(error) > big and not overshot:
         return Choice(LEFT if error > 0 else RIGHT)
     steer = max(-ctrl.max_steer, min(ctrl.max_steer, ctrl.steer_gain * error))
-    u = (math.degrees(abs(error)) - ctrl.slow_deg) / (ctrl.stop_deg - ctrl.slow_deg)
-    step = 1.0 - (1.0 - ctrl.min_step) * min(1.0, max(0.0, u))
-    return Choice(FORWARD, steer, step)
+    return Choice(FORWARD, steer, step_fraction(abs(error), ctrl))
+
+
+def step_fraction(error: float, ctrl: Controller) -> float:
+    """The forward step's fraction for a heading error of ``error`` rad (>= 0): full up to
+    ``slow_deg``, down linearly to ``min_step`` at ``stop_deg``."""
+    u = (math.degrees(error) - ctrl.slow_deg) / (ctrl.stop_deg - ctrl.slow_deg)
+    return 1.0 - (1.0 - ctrl.min_step) * min(1.0, max(0.0, u))
+
+
+def bend_cap(route: np.ndarray, seg: int, pos: np.ndarray, ctrl: Controller) -> float:
+    """The forward step's cap ahead of the bend at the end of segment ``seg``: the step for a
+    heading error of the bend's turn times ``1 - distance / bend_distance`` (the torso's
+    distance to the bend), so the robot slows before a corner instead of after it; 1 with
+    ``bend_distance`` 0, on the last segment and farther than ``bend_distance``."""
+    if ctrl.bend_distance <= 0 or seg >= len(route) - 2:
+        return 1.0
+    a, b, c = route[seg], route[seg + 1], route[seg + 2]
+    turn = abs(wrap(math.atan2(c[1] - b[1], c[0] - b[0]) - math.atan2(b[1] - a[1], b[0] - a[0])))
+    near = min(1.0, max(0.0, 1.0 - float(np.linalg.norm(b - pos)) / ctrl.bend_distance))
+    return step_fraction(turn * near, ctrl)
 
 
 def near_goal(ctrl: Controller) -> Controller:
@@ -460,6 +485,9 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
                 target = goal
             error = wrap(math.atan2(target[1] - pos[1], target[0] - pos[0]) - yaw)
             choice = choose(error, mode, near_goal(ctrl) if near else ctrl)
+            if choice.mode == FORWARD and ctrl.bend_distance > 0:
+                choice = dataclasses.replace(
+                    choice, step=min(choice.step, bend_cap(route, seg, pos, ctrl)))
             if k * dt < RAMP_TIME and p_new is not None:
                 choice = last  # no switch during the start-up
             last = choice

@@ -361,6 +361,21 @@ def _choose(error, mode, c: wr.Controller):
     return new, jnp.where(fwd, steer, 0.0), jnp.where(fwd, step, 1.0)
 
 
+def _bend_cap(route, seg, pos, c: wr.Controller):
+    """:func:`~eaco_jax.gait.walk_route.bend_cap` in JAX."""
+    if c.bend_distance <= 0:
+        return jnp.float32(1.0)
+    last = route.shape[0] - 2
+    a, b = route[seg], route[jnp.minimum(seg + 1, last + 1)]
+    n = route[jnp.minimum(seg + 2, last + 1)]
+    turn = jnp.abs(_wrap(jnp.arctan2(n[1] - b[1], n[0] - b[0])
+                         - jnp.arctan2(b[1] - a[1], b[0] - a[0])))
+    near = jnp.clip(1.0 - jnp.linalg.norm(b - pos) / c.bend_distance, 0.0, 1.0)
+    u = (jnp.degrees(turn * near) - c.slow_deg) / (c.stop_deg - c.slow_deg)
+    cap = 1.0 - (1.0 - c.min_step) * jnp.clip(u, 0.0, 1.0)
+    return jnp.where(seg < last, cap, 1.0)
+
+
 def _choose_near(error, mode, near, c: wr.Controller):
     """:func:`_choose` with :func:`~eaco_jax.gait.walk_route.near_goal`'s controller where
     ``near`` (within ``lookahead`` of the goal on the last segment)."""
@@ -701,6 +716,8 @@ def _compiled(st: _Static):
             target = jnp.where(near, goal, target)
             error = _wrap(jnp.arctan2(target[1] - pos[1], target[0] - pos[0]) - yaw)
             mode, steer, stp = _choose_near(error, s["mode"], near, c)
+            if c.bend_distance > 0:
+                stp = jnp.where(mode == 0, jnp.minimum(stp, _bend_cap(route, seg, pos, c)), stp)
             hold = (k < ramp_steps) & s["started"]
             mode = jnp.where(hold, s["last_mode"], mode)
             steer = jnp.where(hold, s["last_steer"], steer)

@@ -82,6 +82,9 @@ class WalkSettings:
                               "gait's")
     goal_turn_deg: float = setting(60.0, "controller: within --lookahead of the goal, turn on "
                                    "the spot above this heading error (180: never)")
+    bend_distance: float = setting(0.0, "controller: within this distance of a bend [m], "
+                                   "shorten the forward step as for a heading error of the "
+                                   "bend's turn scaled by the distance covered (0: off)")
     blend_cycles: float = setting(0.5, "controller: step cycles a gait change blends over")
     backend: str = setting("native", "physics: native MuJoCo (one world at a time) or MJX "
                            "(the nominal and every randomised world in one batched call)",
@@ -114,7 +117,7 @@ class WalkSettings:
                           steer_gain=self.steer_gain, max_steer=self.max_steer,
                           slow_deg=self.slow_deg, stop_deg=self.stop_deg,
                           min_step=self.min_step, goal_turn_deg=self.goal_turn_deg,
-                          blend_cycles=self.blend_cycles)
+                          bend_distance=self.bend_distance, blend_cycles=self.blend_cycles)
 
 
 def planning_scene(scene: Any, clearance: float, ramps: str) -> Any:
