@@ -157,15 +157,21 @@ def test_warp_without_a_gpu_is_refused_in_one_line(tmp_path):
 
 
 # --------------------------------------------------------------------------- walks
+def _native_walk(nao, ctrl):
+    """The native nominal walk around the box: its record, decisions, model and heading."""
+    heading = wr.start_heading(TINY, AROUND)
+    model = sw.scene_model(TINY, nao, start_heading=heading)
+    dec: list = []
+    native = wr.walk(TINY, AROUND, nao, wr.load_walk_gaits("nao"), ctrl, max_time=WALK_TIME,
+                     model=model, decisions=dec)
+    return native, dec, model, heading
+
+
 @pytest.fixture(scope="module")
 def tiny(nao):
     """The tiny scene's model and the nominal walk around the box on both backends."""
     gaits, ctrl = wr.load_walk_gaits("nao"), wr.Controller()
-    heading = wr.start_heading(TINY, AROUND)
-    model = sw.scene_model(TINY, nao, start_heading=heading)
-    dec: list = []
-    native = wr.walk(TINY, AROUND, nao, gaits, ctrl, max_time=WALK_TIME, model=model,
-                     decisions=dec)
+    native, dec, model, heading = _native_walk(nao, ctrl)
     batch = wm.nominal_batch(model, nao, AROUND[0], heading)
     out = wm.walk_batch(TINY, AROUND, nao, gaits, ctrl, batch, max_time=WALK_TIME,
                         model=model)
@@ -191,27 +197,18 @@ def test_mjx_walk_follows_the_native_walk_in_the_nominal_world(tiny):
     assert rec["closest_approach_m"] == pytest.approx(nat["closest_approach_m"], abs=1e-3)
 
 
-def _native_decisions(nao, ctrl):
-    heading = wr.start_heading(TINY, AROUND)
-    model = sw.scene_model(TINY, nao, start_heading=heading)
-    dec: list = []
-    wr.walk(TINY, AROUND, nao, wr.load_walk_gaits("nao"), ctrl, max_time=WALK_TIME,
-            model=model, decisions=dec)
-    return dec, model, heading
-
-
 def test_bend_distance_shortens_the_step_before_the_first_corner(nao):
     """The native walk applies bend_cap: before the first corner (segment 0) its forward
     steps are shorter than without it. Decisions: (time, segment, error, mode, steer, step)."""
-    off, _, _ = _native_decisions(nao, wr.Controller())
-    on, _, _ = _native_decisions(nao, wr.Controller(bend_distance=1.5))
+    off = _native_walk(nao, wr.Controller())[1]
+    on = _native_walk(nao, wr.Controller(bend_distance=1.5))[1]
     assert min(d[5] for d in on if d[1] == 0) < min(d[5] for d in off if d[1] == 0) - 0.05
 
 
 @pytest.mark.slow
 def test_mjx_walk_applies_bend_distance_as_the_native_walk(nao):
     ctrl = wr.Controller(bend_distance=1.5)
-    native, model, heading = _native_decisions(nao, ctrl)
+    _, native, model, heading = _native_walk(nao, ctrl)
     batch = wm.nominal_batch(model, nao, AROUND[0], heading)
     out = wm.walk_batch(TINY, AROUND, nao, wr.load_walk_gaits("nao"), ctrl, batch,
                         max_time=WALK_TIME, model=model)

@@ -354,26 +354,28 @@ def _choose(error, mode, c: wr.Controller):
     keep = turning & ~overshot & (jnp.abs(error) > small)
     spot = ~keep & (jnp.abs(error) > big) & ~overshot
     steer = jnp.clip(c.steer_gain * error, -c.max_steer, c.max_steer)
-    u = (jnp.degrees(jnp.abs(error)) - c.slow_deg) / (c.stop_deg - c.slow_deg)
-    step = 1.0 - (1.0 - c.min_step) * jnp.clip(u, 0.0, 1.0)
+    step = _step_fraction(jnp.abs(error), c)
     new = jnp.where(keep, mode, jnp.where(spot, jnp.where(error > 0, 1, 2), 0))
     fwd = new == 0
     return new, jnp.where(fwd, steer, 0.0), jnp.where(fwd, step, 1.0)
+
+
+def _step_fraction(error, c: wr.Controller):
+    """:func:`~eaco_jax.gait.walk_route.step_fraction` in JAX (``error`` >= 0, rad)."""
+    u = (jnp.degrees(error) - c.slow_deg) / (c.stop_deg - c.slow_deg)
+    return 1.0 - (1.0 - c.min_step) * jnp.clip(u, 0.0, 1.0)
 
 
 def _bend_cap(route, seg, pos, c: wr.Controller):
     """:func:`~eaco_jax.gait.walk_route.bend_cap` in JAX."""
     if c.bend_distance <= 0:
         return jnp.float32(1.0)
-    last = route.shape[0] - 2
-    a, b = route[seg], route[jnp.minimum(seg + 1, last + 1)]
-    n = route[jnp.minimum(seg + 2, last + 1)]
+    last = route.shape[0] - 2  # seg <= last, so seg + 1 is a waypoint; seg + 2 may not be
+    a, b, n = route[seg], route[seg + 1], route[jnp.minimum(seg + 2, last + 1)]
     turn = jnp.abs(_wrap(jnp.arctan2(n[1] - b[1], n[0] - b[0])
                          - jnp.arctan2(b[1] - a[1], b[0] - a[0])))
     near = jnp.clip(1.0 - jnp.linalg.norm(b - pos) / c.bend_distance, 0.0, 1.0)
-    u = (jnp.degrees(turn * near) - c.slow_deg) / (c.stop_deg - c.slow_deg)
-    cap = 1.0 - (1.0 - c.min_step) * jnp.clip(u, 0.0, 1.0)
-    return jnp.where(seg < last, cap, 1.0)
+    return jnp.where(seg < last, _step_fraction(turn * near, c), 1.0)
 
 
 def _choose_near(error, mode, near, c: wr.Controller):

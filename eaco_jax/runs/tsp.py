@@ -345,8 +345,8 @@ def build(s: TspSettings) -> Built:
             and construction == "auto":
         max_new_edges, construction = row.max_new_edges, row.construction
         merge = row.merge_ants if merge is None else merge
-        if s.ants is None and row_ants(row, int(problem.n)) is not None:
-            ants = row_ants(row, int(problem.n))
+        if s.ants is None:
+            ants = row_ants(row, int(problem.n)) or ants
     focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
