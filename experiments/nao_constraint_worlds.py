@@ -254,6 +254,9 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path(OUT))
     ap.add_argument("--no-only", action="store_true", help="skip the only_* scenarios")
     ap.add_argument("--no-plot", action="store_true")
+    ap.add_argument("--noise-scan", type=float, nargs="*", default=[],
+                    help="also the sampled worlds with the target noise at each of these stds "
+                         "(rad; same noise key), scenarios noise_std_<value>")
     a = ap.parse_args()
     t_start = time.perf_counter()
     data = read_params_file(a.gait)
@@ -280,6 +283,10 @@ def main() -> None:
     plan.append(("resampled_noise", "the sampled worlds with another target-noise key "
                  "(same std): how much a world's values depend on the noise draw",
                  worlds.replace(noise_key=jax.random.fold_in(worlds.noise_key, 1))))
+    for std in a.noise_scan:
+        plan.append((f"noise_std_{std:g}", f"the sampled worlds with target noise std {std:g} rad "
+                     "(same key), the rest as sampled",
+                     worlds.replace(noise_std=jnp.full_like(worlds.noise_std, std))))
     plan.append(("nominal", "the nominal world alone (no Worlds)", None))
 
     scenarios: dict[str, dict[str, Any]] = {}

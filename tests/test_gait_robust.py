@@ -250,3 +250,18 @@ def test_search_draws_fresh_worlds_each_iteration_reproducibly():
     k1, k2 = jax.random.split(jax.random.key(0))
     assert not np.array_equal(np.asarray(walk.evaluate(x, k1).f),
                               np.asarray(walk.evaluate(x, k2).f))
+
+
+def test_every_randomisation_range_names_its_source_or_says_it_is_an_assumption():
+    """Issue 30 item 1: each range of the worlds carries its source, or is a documented
+    assumption; a range added to RobustConfig without one fails here."""
+    import dataclasses
+
+    from eaco_jax.gait.worlds import RANGE_SOURCES, RobustConfig
+
+    control = {"R", "aggregate", "alpha", "seed", "resample"}
+    ranges = {f.name for f in dataclasses.fields(RobustConfig)} - control
+    assert ranges == set(RANGE_SOURCES)
+    for name, (kind, text) in RANGE_SOURCES.items():
+        assert kind in ("sourced", "assumption"), name
+        assert len(text) > 20, name

@@ -49,6 +49,31 @@ FRICTION_GEOMS = "floor"
 """The floor plus every geom of ``spec.foot_geoms`` gets the world's sliding friction."""
 
 
+#: Where each :class:`RobustConfig` range comes from: ("sourced" | "assumption", the source or
+#: why none). A range without a published NAO figure is a documented assumption (issue 30,
+#: item 1); docs/motors.md ("Where the ranges come from") has the quotes.
+RANGE_SOURCES: dict[str, tuple[str, str]] = {
+    "friction": ("assumption", "no NAO foot measurement found; humanoid-foot friction of indoor "
+                 "floors 0.82-0.97 and grass 0.53 (Brandao et al. 2017, arXiv:1706.08685) lie "
+                 "in the range"),
+    "mass": ("assumption", "no per-unit tolerance published; Aldebaran's link masses are CAD "
+             "values, symmetrised left/right (doc.aldebaran.com, NAO masses tables)"),
+    "motor": ("sourced", "the motor datasheets' tolerances: stall torque +-8 %, no-load speed "
+              "+-10 % (robots/nao.json sources.motors)"),
+    "target_noise": ("assumption", "white noise per control step; sensor quantisation of the "
+                     "12-bit joint encoders (2 pi / 4096 rad a count) accounts for only about "
+                     "0.0005 rad std; NAO joint play (B-Human JointPlayProvider: 0.5-1.4 deg on "
+                     "a good robot) is slow and systematic, not white"),
+    "latency": ("sourced", "NAO V5's DCM cycle is 10 ms and applies a new order at the next "
+                "cycle (doc.aldebaran.com, DCM); 0-1 control steps of 20 ms span 0-2 cycles"),
+    "init_noise": ("assumption", "no source; 0.01 rad lies below a good NAO's joint play of "
+                   "0.5-1.4 deg (B-Human JointPlayProvider)"),
+    "push": ("assumption", "no published RoboCup SPL collision impulse; a walking-pace bump of "
+             "another 5.2 kg NAO (0.17-0.25 m/s, inelastic) transfers about 0.45-0.65 N s"),
+    "push_duration": ("assumption", "a short shove, no source"),
+}
+
+
 @dataclasses.dataclass(frozen=True)
 class RobustConfig:
     """How a gait is evaluated under ``R`` randomised worlds and how the results combine.
