@@ -52,7 +52,7 @@ from scipy import stats
 from eaco_jax.gait import constraints as gc
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import gait_fitness
-from eaco_jax.gait.worlds import RobustConfig, Worlds, stream_key
+from eaco_jax.gait.worlds import RobustConfig, Worlds, joint_play_offsets, stream_key
 from eaco_jax.problems.gait import make_gait_problem
 from eaco_jax.runs.gait import params_vector, read_params_file
 
@@ -257,6 +257,12 @@ def main() -> None:
     ap.add_argument("--noise-scan", type=float, nargs="*", default=[],
                     help="also the sampled worlds with the target noise at each of these stds "
                          "(rad; same noise key), scenarios noise_std_<value>")
+    ap.add_argument("--joint-play", type=float, nargs="*", default=[],
+                    help="also the sampled worlds with joint-play offsets of each of these "
+                         "half-widths (rad; RobustConfig.joint_play's draw) and target noise "
+                         "--play-noise, scenarios play_<value>")
+    ap.add_argument("--play-noise", type=float, default=0.0005,
+                    help="target noise std (rad) of the --joint-play scenarios")
     a = ap.parse_args()
     t_start = time.perf_counter()
     data = read_params_file(a.gait)
@@ -287,6 +293,12 @@ def main() -> None:
         plan.append((f"noise_std_{std:g}", f"the sampled worlds with target noise std {std:g} rad "
                      "(same key), the rest as sampled",
                      worlds.replace(noise_std=jnp.full_like(worlds.noise_std, std))))
+    wkey = stream_key(seed, "selection", 0)
+    for play in a.joint_play:
+        plan.append((f"play_{play:g}", f"the sampled worlds with joint-play offsets U(-{play:g}, "
+                     f"{play:g}) rad per joint and target noise std {a.play_noise:g} rad",
+                     worlds.replace(noise_std=jnp.full_like(worlds.noise_std, a.play_noise),
+                                    target_offset=joint_play_offsets(wkey, play, p.spec, n))))
     plan.append(("nominal", "the nominal world alone (no Worlds)", None))
 
     scenarios: dict[str, dict[str, Any]] = {}

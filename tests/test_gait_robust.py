@@ -265,3 +265,42 @@ def test_every_randomisation_range_names_its_source_or_says_it_is_an_assumption(
     for name, (kind, text) in RANGE_SOURCES.items():
         assert kind in ("sourced", "assumption"), name
         assert len(text) > 20, name
+
+
+def test_joint_play_offsets_targets_by_a_constant_per_world_and_leaves_other_draws_alone(problem):
+    """``RobustConfig.joint_play``: each world holds one target offset per joint, U(-play,
+    play), the same at every control step, a coupled follower's equal to its leader's; off (0)
+    the worlds and their commanded targets are those drawn before joint play existed."""
+    from eaco_jax.gait import walk_route, walk_route_mjx
+
+    spec = problem.spec
+    w0 = problem.worlds(world_key(3, 7))
+    # values of the code before joint_play (0c64c39..3dbd7ef): stored worlds stay reproducible
+    np.testing.assert_allclose(np.asarray(w0.friction), [0.98645633, 0.82291532, 0.75864935],
+                               rtol=1e-6)
+    ctrl = jnp.zeros((2, 10, spec.nu))
+    assert float(jnp.sum(world_ctrl_at(ctrl, jnp.int32(4), w0, spec))) == pytest.approx(
+        0.07237160205841064, rel=1e-5)
+    assert not np.any(np.asarray(w0.target_offset))
+    play = 0.02
+    p = problem.replace(robust=RobustConfig(R=3, joint_play=play))
+    w = p.worlds(world_key(3, 7))
+    for f in ("friction", "mass_scale", "stall_scale", "latency", "init_dq", "push_force"):
+        np.testing.assert_array_equal(getattr(w, f), getattr(w0, f))
+    off = np.asarray(w.target_offset)
+    assert off.shape == (3, spec.nu) and np.all(np.abs(off) <= play)
+    assert np.std(off) > play / 4  # spread over the range, not a constant
+    for lead, follow in spec.coupled_joints:
+        li, fi = spec.joint_names.index(lead), spec.joint_names.index(follow)
+        np.testing.assert_array_equal(off[:, fi], off[:, li])
+    ctrl = jax.random.normal(jax.random.PRNGKey(0), (2, 10, spec.nu)) * 0.1
+    for t in (0, 3, 9):
+        d = world_ctrl_at(ctrl, jnp.int32(t), w, spec) - world_ctrl_at(ctrl, jnp.int32(t), w0, spec)
+        np.testing.assert_allclose(np.asarray(d), np.broadcast_to(off, d.shape), atol=1e-6)
+    cfg = RobustConfig(joint_play=play)
+    with pytest.raises(ProblemError, match="joint_play"):
+        walk_route.sample_walk_worlds(None, spec, 2, 10, 5, cfg=cfg)
+    with pytest.raises(ProblemError, match="joint_play"):
+        walk_route_mjx.world_batch(None, spec, 2, 5, (0.0, 0.0), 0.0, cfg=cfg)
+    with pytest.raises(ProblemError, match="joint_play"):
+        RobustConfig(joint_play=-0.01)

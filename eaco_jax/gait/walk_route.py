@@ -334,6 +334,9 @@ def sample_walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, n_steps: 
     world's floor friction), ``n_steps`` control steps of target noise, a push within the
     first ``push_steps`` control steps, the initial pose offsets."""
     cfg = cfg or RobustConfig()
+    if cfg.joint_play:
+        raise ProblemError(f"joint_play {cfg.joint_play} is not modelled by the route walker yet; "
+                           "walk with joint_play=0 (RobustConfig's default)")
     worlds = sample_worlds(stream_key(seed, stream), cfg, spec, model.nbody, push_steps, r=n)
     wn = jax.tree.map(np.asarray, worlds)
     models = native_world_models(model, spec, wn)

@@ -477,6 +477,9 @@ def world_batch(model: mujoco.MjModel, spec: RobotSpec, n: int, push_steps: int,
     """Worlds ``index`` (default all) of the ``n`` that
     :func:`~eaco_jax.gait.walk_route.sample_walk_worlds` draws for ``seed`` / ``stream``."""
     cfg = cfg or RobustConfig()
+    if cfg.joint_play:
+        raise ProblemError(f"joint_play {cfg.joint_play} is not modelled by the route walker yet; "
+                           "walk with joint_play=0 (RobustConfig's default)")
     worlds = sample_worlds(stream_key(seed, stream), cfg, spec, model.nbody, push_steps, r=n)
     wn = jax.tree.map(np.asarray, worlds)
     idx = np.arange(n) if index is None else np.asarray(index, np.int64)

@@ -71,7 +71,13 @@ RANGE_SOURCES: dict[str, tuple[str, str]] = {
     "push": ("assumption", "no published RoboCup SPL collision impulse; a walking-pace bump of "
              "another 5.2 kg NAO (0.17-0.25 m/s, inelastic) transfers about 0.45-0.65 N s"),
     "push_duration": ("assumption", "a short shove, no source"),
+    "joint_play": ("sourced", "B-Human's JointPlayProvider (BHumanCodeRelease): a good NAO V6's "
+                   "walking tracking error and play, 0.5-1.4 deg per leg joint; off (0) by "
+                   "default, so the worlds stay as every stored gait met them"),
 }
+#: folded into a world batch's key for the joint-play offsets, so the ten keys every other
+#: range draws from (and so every world drawn before joint play existed) stay as they were
+JOINT_PLAY_FOLD = 0x7A1E
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +88,9 @@ class RobustConfig:
     Ranges: ``friction`` (sliding friction, uniform), ``mass`` (each link x U(1 -/+ mass)),
     ``motor`` (x the datasheet tolerances of stall torque and no-load speed, uniform),
     ``target_noise`` (rad, std), ``latency`` (control steps, uniform 0..latency),
-    ``init_noise`` (rad, std), ``push`` (largest horizontal impulse, N s) over ``push_duration``.
+    ``init_noise`` (rad, std), ``push`` (largest horizontal impulse, N s) over ``push_duration``,
+    ``joint_play`` (rad: each world offsets each joint's target by U(-play, play), constant
+    over the run: joint play and calibration, the slow error white ``target_noise`` is not).
     ``seed`` is the root of the three world streams (the run's seed); a caller passing no key
     gets batch 0 of its optimisation stream (a deterministic objective).
     """
@@ -99,6 +107,7 @@ class RobustConfig:
     init_noise: float = 0.01
     push: float = 0.5
     push_duration: float = 0.1
+    joint_play: float = 0.0
     #: fresh worlds at every evaluation (drawn from the driver's key stream); False keeps the
     #: worlds fixed by ``seed``, which overfits them: a gait tuned on fixed worlds falls more
     #: often in fresh ones
@@ -115,7 +124,8 @@ class RobustConfig:
         lo, hi = self.friction
         if not 0.0 < lo <= hi:
             raise ProblemError(f"robust friction range must satisfy 0 < lo <= hi, got {lo, hi}")
-        for name in ("mass", "motor", "target_noise", "init_noise", "push", "push_duration"):
+        for name in ("mass", "motor", "target_noise", "init_noise", "push", "push_duration",
+                     "joint_play"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise ProblemError(f"robust {name} must be a finite number >= 0, got {v!r}")
@@ -140,6 +150,7 @@ class Worlds:
     push_start: jax.Array  # (R,) int32 control step
     push_stop: jax.Array  # (R,) int32 control step (exclusive)
     push_force: jax.Array  # (R, 3) N, world frame
+    target_offset: jax.Array  # (R, nu) rad, every control step's target (joint play)
 
     @property
     def size(self) -> int:
@@ -192,6 +203,14 @@ def couple_controls(ctrl, spec, xp=jnp):
     return _couple(ctrl, spec, xp)
 
 
+def joint_play_offsets(key: jax.Array, play: float, spec, r: int) -> jax.Array:
+    """Each world's constant target offsets ``(r, nu)``, U(-play, play) per joint (a coupled
+    follower takes its leader's), from the world batch's ``key``."""
+    u = jax.random.uniform(jax.random.fold_in(key, JOINT_PLAY_FOLD), (r, spec.nu), jnp.float32,
+                           -1.0, 1.0)
+    return _couple(jnp.float32(play) * u, spec)
+
+
 def sample_worlds(key: jax.Array, cfg: RobustConfig, spec, nbody: int, n_steps: int,
                   r: int | None = None) -> Worlds:
     """``r`` (default ``cfg.R``) worlds drawn from ``key`` within ``cfg``'s ranges."""
@@ -225,16 +244,18 @@ def sample_worlds(key: jax.Array, cfg: RobustConfig, spec, nbody: int, n_steps: 
         push_start=start,
         push_stop=start + push_steps,
         push_force=force.astype(jnp.float32),
+        target_offset=joint_play_offsets(key, cfg.joint_play, spec, r),
     )
 
 
 def world_ctrl_at(controls: jax.Array, t: jax.Array, worlds: Worlds, spec) -> jax.Array:
     """Commanded targets ``(A, R, nu)`` at control step ``t`` in each world: the ants' targets
-    ``controls`` ``(A, T, nu)`` delayed by the world's latency, plus its target noise."""
+    ``controls`` ``(A, T, nu)`` delayed by the world's latency, plus its target noise and its
+    joint-play offsets."""
     idx = jnp.maximum(t - worlds.latency, 0)
     u = jnp.take(controls, idx, axis=1)  # (A, R, nu)
     noise = jax.random.normal(jax.random.fold_in(worlds.noise_key, t), u.shape[1:], jnp.float32)
-    return _couple(u + worlds.noise_std * noise, spec)
+    return _couple(u + worlds.noise_std * noise + worlds.target_offset, spec)
 
 
 def push_at(t: jax.Array, worlds: Worlds) -> jax.Array:
