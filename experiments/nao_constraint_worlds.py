@@ -277,7 +277,8 @@ def main() -> None:
                           slope_deg=float(data.get("slope") or 0.0), robust=cfg,
                           constrained=True)
     x = p.gait_row(params_vector(data, p, a.gait))
-    worlds = p.worlds(stream_key(seed, "selection", 0), n)
+    wkey = stream_key(seed, "selection", 0)
+    worlds = p.worlds(wkey, n)
     lim = gc.limits(ql.mo.motor_model(p.spec), horizon)
 
     plan: list[tuple[str, str, Worlds | None]] = [("baseline", "the sampled worlds", worlds)]
@@ -293,7 +294,6 @@ def main() -> None:
         plan.append((f"noise_std_{std:g}", f"the sampled worlds with target noise std {std:g} rad "
                      "(same key), the rest as sampled",
                      worlds.replace(noise_std=jnp.full_like(worlds.noise_std, std))))
-    wkey = stream_key(seed, "selection", 0)
     for play in a.joint_play:
         plan.append((f"play_{play:g}", f"the sampled worlds with joint-play offsets U(-{play:g}, "
                      f"{play:g}) rad per joint and target noise std {a.play_noise:g} rad",

@@ -326,6 +326,17 @@ class WorldInputs:
     motor: ql.MotorParams | None = None  # the world's motor parameters (None: the model's)
 
 
+def walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, push_steps: int, seed: int,
+                stream: str, cfg: RobustConfig | None) -> Worlds:
+    """The ``n`` worlds both route walkers draw (batch 0 of ``stream`` of ``seed``, ``cfg``'s
+    ranges, default :class:`RobustConfig`); joint play is refused: no walker models it yet."""
+    cfg = cfg or RobustConfig()
+    if cfg.joint_play:
+        raise ProblemError(f"joint_play {cfg.joint_play} is not modelled by the route walker yet; "
+                           "walk with joint_play=0 (RobustConfig's default)")
+    return sample_worlds(stream_key(seed, stream), cfg, spec, model.nbody, push_steps, r=n)
+
+
 def sample_walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, n_steps: int,
                        push_steps: int, seed: int = 0, stream: str = "test",
                        cfg: RobustConfig | None = None) -> tuple[list[WorldInputs], Worlds]:
@@ -333,11 +344,7 @@ def sample_walk_worlds(model: mujoco.MjModel, spec: RobotSpec, n: int, n_steps: 
     ``stream`` of ``seed``) as walk inputs: per-world models (the ramps and obstacles take the
     world's floor friction), ``n_steps`` control steps of target noise, a push within the
     first ``push_steps`` control steps, the initial pose offsets."""
-    cfg = cfg or RobustConfig()
-    if cfg.joint_play:
-        raise ProblemError(f"joint_play {cfg.joint_play} is not modelled by the route walker yet; "
-                           "walk with joint_play=0 (RobustConfig's default)")
-    worlds = sample_worlds(stream_key(seed, stream), cfg, spec, model.nbody, push_steps, r=n)
+    worlds = walk_worlds(model, spec, n, push_steps, seed, stream, cfg)
     wn = jax.tree.map(np.asarray, worlds)
     models = native_world_models(model, spec, wn)
     extra = sw.geom_ids(model, "ramp") + sw.geom_ids(model, "obstacle")

@@ -87,8 +87,6 @@ from eaco_jax.gait.worlds import (
     friction_geom_ids,
     initial_qpos,
     model_fields,
-    sample_worlds,
-    stream_key,
 )
 
 mjx = quiet_mjx()
@@ -476,11 +474,7 @@ def world_batch(model: mujoco.MjModel, spec: RobotSpec, n: int, push_steps: int,
                 cfg: RobustConfig | None = None, index=None) -> tuple[WalkBatch, Worlds]:
     """Worlds ``index`` (default all) of the ``n`` that
     :func:`~eaco_jax.gait.walk_route.sample_walk_worlds` draws for ``seed`` / ``stream``."""
-    cfg = cfg or RobustConfig()
-    if cfg.joint_play:
-        raise ProblemError(f"joint_play {cfg.joint_play} is not modelled by the route walker yet; "
-                           "walk with joint_play=0 (RobustConfig's default)")
-    worlds = sample_worlds(stream_key(seed, stream), cfg, spec, model.nbody, push_steps, r=n)
+    worlds = wr.walk_worlds(model, spec, n, push_steps, seed, stream, cfg)
     wn = jax.tree.map(np.asarray, worlds)
     idx = np.arange(n) if index is None else np.asarray(index, np.int64)
     if idx.size == 0 or idx.min() < 0 or idx.max() >= n:
