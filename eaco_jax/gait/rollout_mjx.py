@@ -27,6 +27,7 @@ import numpy as np
 
 from eaco_jax.gait import motors as mo
 from eaco_jax.gait import quality as ql
+from eaco_jax.gait import steer as st
 from eaco_jax.gait.fitness import is_down
 from eaco_jax.gait.mjx_import import quiet_mjx
 from eaco_jax.gait.robot import RobotSpec
@@ -186,6 +187,7 @@ def mjx_rollout(
     limits: bool | None = None,
     trace_every: int = 0,
     interpolate: bool | None = None,
+    steer: st.SteerInputs | None = None,
 ) -> dict[str, jax.Array]:
     """Roll out the ants' targets ``controls`` ``(A, T, nu)`` on MJX (in R worlds if given).
 
@@ -196,6 +198,8 @@ def mjx_rollout(
     scan (no per-step history is kept). ``interpolate`` (default: the spec's,
     :func:`~eaco_jax.gait.motors.interpolates_targets`): the targets move linearly from one
     control step's to the next over its physics steps instead of being held.
+    ``steer`` (:mod:`eaco_jax.gait.steer`): the heading controller corrects the targets at
+    every control step from the torso's pose.
     ``impl="warp"`` runs MuJoCo Warp (CUDA) with contact and constraint buffers sized from the
     model and the batch (:func:`contact_capacity`); an overflow is reported on stderr.
     Traceable: call it inside jit / scan.
@@ -275,6 +279,17 @@ def mjx_rollout(
             return couple_controls(controls[:, t], spec)
         return world_ctrl_at(controls, t, worlds, spec).reshape(nb, nu)
 
+    if steer is not None:
+        dctrl = couple_controls(jnp.asarray(steer.dcontrols, jnp.float32), spec)
+        lat = (jnp.zeros((nb,), jnp.int32) if worlds is None
+               else jnp.take(worlds.latency, world_of))
+
+        def dtargets(t):
+            if worlds is None:
+                return dctrl[:, t]
+            idx = jnp.maximum(t - worlds.latency, 0)
+            return jnp.take(dctrl, idx, axis=1).reshape(nb, nu)
+
     mlim = mo.motor_model(spec) if limits else None
     mp0 = None if mp is None else ql.MotorParams(*(x[:, 0] for x in mp))
 
@@ -288,11 +303,25 @@ def mjx_rollout(
         return (step(dd) if worlds is None else step(mmb, dd)), None
 
     def control_step(carry, t):
-        d, acc, alive, peak = carry
-        u = targets(t)
+        d, acc, alive, peak, sc = carry
+        if steer is None:
+            u = targets(t)
+            u_next = targets(jnp.minimum(t + 1, n_steps - 1)) if interpolate else u
+        else:
+            state, u_prev_end = sc
+            c_old = state.c_prev
+            state, c = st.update(state, root_trace(d.qpos), start_xy, steer.direction,
+                                 steer.steering, spec.control_dt)
+            c_eff = st.delayed(c, c_old, lat)[:, None]
+            if interpolate:  # the command moves on from where the last step's ended
+                u, tn = u_prev_end, jnp.minimum(t + 1, n_steps - 1)
+                u_next = targets(tn) + c_eff * dtargets(tn)
+            else:
+                u = targets(t) + c_eff * dtargets(t)
+                u_next = u
+            sc = (state, u_next)
         # (nb, k, nu): this control step's physics steps' targets, held or interpolated
-        us = mo.physics_targets(u, targets(jnp.minimum(t + 1, n_steps - 1)) if interpolate
-                                else u, k, interpolate)
+        us = mo.physics_targets(u, u_next, k, interpolate)
         d = d.replace(ctrl=u)
         if worlds is not None:
             qfrc = jnp.zeros((nb, model.nv), jnp.float32)
@@ -320,15 +349,17 @@ def mjx_rollout(
                                  slope_deg)
         if warp:  # buffer use: total contacts (all worlds) and rows per world
             peak = jnp.maximum(peak, jnp.stack([jnp.max(d._impl.nacon), jnp.max(d._impl.nefc)]))
-        return (d, acc, alive, peak), (row, d.qpos if record else None)
+        return (d, acc, alive, peak, sc), (row, d.qpos if record else None)
 
     start = root_trace(data.qpos)
+    start_xy = start[:, :2]
+    sc0 = None if steer is None else (st.start_state(nb), targets(0))
     alive0 = ~is_down(start[:, :3], start[:, 3:6], spec.fall_height, spec.fall_tilt_deg, slope_deg)
     acc0 = (ql.new_acc((nb,), nu, motor=el is not None, trace_samples=ql.trace_samples(el))
             if quality else None)
     peak0 = jnp.zeros((2,), jnp.int32)
-    (_, acc, _, peak), (trace, qpos) = jax.lax.scan(
-        control_step, (data, acc0, alive0, peak0), jnp.arange(n_steps))
+    (_, acc, _, peak, _), (trace, qpos) = jax.lax.scan(
+        control_step, (data, acc0, alive0, peak0, sc0), jnp.arange(n_steps))
     if warp:
         jax.debug.callback(_warp_overflow, peak[0], peak[1], naconmax, njmax)
     out = {"trace": jnp.swapaxes(jnp.concatenate([start[None], trace], 0), 0, 1)}

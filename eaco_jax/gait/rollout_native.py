@@ -42,6 +42,7 @@ from mujoco import rollout as mj_rollout
 
 from eaco_jax.gait import motors as mo
 from eaco_jax.gait import quality as ql
+from eaco_jax.gait import steer as st
 from eaco_jax.gait.fitness import is_down
 from eaco_jax.gait.robot import RobotSpec, load_model, stand_qpos
 from eaco_jax.gait.walk_engine import stand_pose
@@ -195,6 +196,8 @@ def native_rollout(
     limits: bool | None = None,
     trace_every: int = 0,
     interpolate: bool | None = None,
+    steer: st.SteerInputs | None = None,
+    latency: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Roll out ``controls`` ``(B, T, nu)`` (one per control step) on the host.
 
@@ -206,6 +209,10 @@ def native_rollout(
     ``limits`` (default: the spec's, :func:`~eaco_jax.gait.motors.physics_limits`): the motor
     limits in the physics; ``models`` are then position-servo models as without (their servo
     constants give ``motor``'s defaults) and are switched to direct torque here.
+    ``steer`` (:mod:`eaco_jax.gait.steer`, its ``dcontrols`` ``(B, T, nu)`` as delayed and
+    coupled as ``controls``): the heading controller corrects the targets at every control
+    step from the torso's pose; ``latency`` ``(B,)``: each rollout's latency (control steps,
+    default 0), which delays the correction.
     """
     controls = np.asarray(controls, np.float64)
     if controls.ndim != 3 or controls.shape[-1] != spec.nu:
@@ -231,6 +238,14 @@ def native_rollout(
                                         qpos_init[i]) for i in range(nb)])
     nstate = state.shape[1]
     per_ctrl = max(1, STATE_BYTES_PER_CALL // (8 * nstate * k * max(nb, 1)))
+    if steer is not None:  # the controller acts between control steps: one step per chunk
+        per_ctrl = 1
+        dctrl = np.asarray(steer.dcontrols, np.float64)
+        if dctrl.shape != controls.shape:
+            raise ValueError(f"steer.dcontrols must be {controls.shape}, got {dctrl.shape}")
+        lat = np.zeros(nb, np.int64) if latency is None else np.asarray(latency).reshape(nb)
+        sstate = st.start_state(nb, np)
+        u_prev_end = controls[:, 0]
     trace = np.empty((nb, steps + 1, TRACE_COLUMNS), np.float32)
     trace[:, 0] = root_trace(state[:, 1:8])
     qpos_rec = np.empty((nb, steps + 1, base.nq), np.float32) if record_qpos else None
@@ -258,7 +273,21 @@ def native_rollout(
     pool = _pool(nthread)
     for start in range(0, steps, per_ctrl):
         stop = min(steps, start + per_ctrl)
-        ctrl = physics_controls(controls, start, stop, k, interpolate)
+        if steer is None:
+            ctrl = physics_controls(controls, start, stop, k, interpolate)
+        else:
+            c_old = sstate.c_prev
+            sstate, c = st.update(sstate, root_trace(state[:, 1:8]), trace[:, 0, :2],
+                                  steer.direction, steer.steering, spec.control_dt, np)
+            c_eff = st.delayed(c, c_old, lat)[:, None].astype(np.float64)
+            if interpolate:
+                tn = min(start + 1, steps - 1)
+                u, u_next = u_prev_end, controls[:, tn] + c_eff * dctrl[:, tn]
+            else:
+                u = u_next = controls[:, start] + c_eff * dctrl[:, start]
+            u_prev_end = u_next
+            ctrl = np.ascontiguousarray(
+                mo.physics_targets(u, u_next, k, interpolate, np).reshape(nb, k, -1))
         spec_bits = mujoco.mjtState.mjSTATE_CTRL
         if push is not None:
             qfrc = np.zeros(ctrl.shape[:2] + (base.nv,))
@@ -439,6 +468,7 @@ def native_rollout_callback(
     trace_every: int = 0,
     limits: bool | None = None,
     interpolate: bool | None = None,
+    steer: st.SteerInputs | None = None,
 ):
     """:func:`native_rollout` as a ``jax.pure_callback`` (usable under jit, vmap and scan).
 
@@ -446,7 +476,8 @@ def native_rollout_callback(
     ``b = a * R + r``. Returns ``trace`` ``(B, T + 1, 7)`` and, with ``quality``, ``acc`` (dict of
     accumulators, leading axis B). The worlds' targets, pushes and initial poses are computed here
     in JAX by the same functions the MJX backend uses. ``trace_every``, ``limits`` and
-    ``interpolate``: as :func:`native_rollout`'s (None: the spec's).
+    ``interpolate``: as :func:`native_rollout`'s (None: the spec's). ``steer``: the heading
+    controller (:mod:`eaco_jax.gait.steer`; ``dcontrols`` ``(A, T, nu)`` like ``controls``).
     """
     base = native_model(spec, float(slope_deg), accuracy)
     a, t, nu = controls.shape[-3:]
@@ -470,6 +501,16 @@ def native_rollout_callback(
         args = {"ctrl": ctrl, "push": tile(push), "qinit": tile(qinit)}
         for k in _WORLD_ARRAYS:
             args[k] = tile(getattr(worlds, k))
+    if steer is not None:
+        d = jnp.asarray(steer.dcontrols, jnp.float32)
+        if worlds is None:
+            args["dctrl"] = couple_controls(d, spec)
+            args["lat"] = jnp.zeros(lead + (a,), jnp.int32)
+        else:
+            idx = jnp.maximum(jnp.arange(t)[None, :] - worlds.latency[:, None], 0)  # (R, T)
+            per_w = couple_controls(jnp.take(d, idx, axis=-2), spec)  # (..., A, R, T, nu)
+            args["dctrl"] = per_w.reshape(lead + (a * r, t, nu))
+            args["lat"] = tile(worlds.latency)
     nb = a * r
     shapes: dict[str, jax.ShapeDtypeStruct] = {
         "trace": jax.ShapeDtypeStruct(lead + (nb, t + 1, TRACE_COLUMNS), jnp.float32)}
@@ -491,6 +532,9 @@ def native_rollout_callback(
             models, motor = _world_models(base, spec, {k: flat[k] for k in _WORLD_ARRAYS})
             opts = dict(models=models, motor=motor, qpos_init=flat["qinit"].astype(np.float64),
                         push=flat["push"])
+        if steer is not None:
+            opts["steer"] = st.SteerInputs(flat["dctrl"], steer.steering, steer.direction)
+            opts["latency"] = flat["lat"]
         out = native_rollout(flat["ctrl"], spec, slope_deg, accuracy, quality=quality,
                              trace_every=trace_every, limits=limits, interpolate=interpolate,
                              **opts)

@@ -52,7 +52,7 @@ def thermal_walk(problem: Any, params: Any, n: int = 0, seed: int = 0, stream: s
     if n:
         cfg = config or RobustConfig(seed=int(seed))
         worlds = problem.replace(robust=cfg).worlds(stream_key(int(seed), stream, 0), int(n))
-    out = _rollout(problem, controls, worlds, every)
+    out = _rollout(problem, controls, worlds, every, problem.steer_inputs(x))
     summary = problem.summarize(out["trace"])
     res = gait_fitness(summary, problem.direction_deg, problem.turn)
     model = native_model(spec, float(problem.slope_deg), problem.accuracy)
@@ -65,23 +65,29 @@ def thermal_walk(problem: Any, params: Any, n: int = 0, seed: int = 0, stream: s
     q = ql.finalize(jax.tree.map(jnp.asarray, out["acc"]), res["distance_m"], mass,
                     float(model.opt.timestep), nominal, mm)
     rec = _record(problem, q, res, r, every, stream if n else "nominal", seed, mm)
-    return rec | {"legs": leg_table(rec)}
+    rec = rec | {"legs": leg_table(rec)}
+    if worlds is not None:
+        rec["target_noise"] = float(cfg.target_noise)
+    return rec
 
 
-def _rollout(problem: Any, controls: jax.Array, worlds, every: int) -> dict:
+def _rollout(problem: Any, controls: jax.Array, worlds, every: int, steer) -> dict:
     spec = problem.spec
     if problem.backend == "mjx":
         run = jax.jit(lambda c: mjx_rollout(c, spec, problem.slope_deg, problem.accuracy,
                                             worlds, quality=True, impl=problem.impl,
-                                            trace_every=every))
+                                            trace_every=every, steer=steer))
         return jax.device_get(run(controls))
     if worlds is None:
+        if steer is not None:
+            steer = steer._replace(dcontrols=couple_controls(np.asarray(steer.dcontrols), spec,
+                                                             xp=np))
         return native_rollout(couple_controls(np.asarray(controls), spec, xp=np), spec,
                               problem.slope_deg, problem.accuracy, quality=True,
-                              trace_every=every)
+                              trace_every=every, steer=steer)
     return jax.device_get(native_rollout_callback(controls, spec, problem.slope_deg,
                                                   problem.accuracy, worlds, quality=True,
-                                                  trace_every=every))
+                                                  trace_every=every, steer=steer))
 
 
 def _f(v: Any) -> float | None:

@@ -25,6 +25,10 @@ objective is speed (``f = -speed``, the fitness distance over the horizon, aggre
 worlds as the fitness is) and the violation the sum of the normalised constraints of
 :mod:`eaco_jax.gait.constraints` (endurance, current, slip, drift, falls), all from the same
 batched rollout; ``host_check`` re-checks the best and reports each constraint.
+
+``steering=Steering(...)`` (:mod:`eaco_jax.gait.steer`, off by default) closes the heading loop
+in every rollout: the walk engine's turn rate is corrected at each control step from the
+torso's pose, so the gait is searched, selected and tested as the controller walks it.
 """
 
 from __future__ import annotations
@@ -48,8 +52,10 @@ from eaco_jax.gait.rollout_native import (
     native_rollout,
     native_rollout_callback,
 )
+from eaco_jax.gait.steer import Steering, SteerInputs, turn_sensitivity
 from eaco_jax.gait.walk_engine import (
     IK_CHOICES,
+    PARAM_NAMES,
     bounds,
     control_sequence,
     gait_vector,
@@ -94,6 +100,8 @@ class GaitProblem(Box):
     impl: str = struct.field(pytree_node=False, default="jax")  # MJX implementation: jax|warp
     #: the biped's leg IK: "auto", "analytic" (the NAO's) or "generic" (any leg chain)
     ik: str = struct.field(pytree_node=False, default="auto")
+    #: the heading controller of :mod:`eaco_jax.gait.steer` (None: open loop)
+    steering: Steering | None = struct.field(pytree_node=False, default=None)
 
     kind: ClassVar[str] = "continuous"
     differentiable = False  # a simulation: no gradient repair / refinement steps
@@ -123,6 +131,14 @@ class GaitProblem(Box):
         return jax.vmap(lambda p: control_sequence(
             p, self.n_steps, self.spec, heading, self.slope_deg, self.ik))(solutions)
 
+    def steer_inputs(self, solutions: jax.Array) -> SteerInputs | None:
+        """What the rollouts need to steer gaits ``(m, dim)`` (None without ``steering``)."""
+        if self.steering is None:
+            return None
+        return SteerInputs(turn_sensitivity(self.controls, solutions,
+                                            PARAM_NAMES.index("turn_rate")),
+                           self.steering, math.radians(self.direction_deg))
+
     def trace(self, solutions: jax.Array) -> jax.Array:
         """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` in the nominal world."""
         return self._rollout(solutions, None, False)["trace"]
@@ -142,11 +158,12 @@ class GaitProblem(Box):
 
     def _rollout(self, solutions, worlds: Worlds | None, quality: bool) -> dict:
         controls = self.controls(solutions)
+        steer = self.steer_inputs(solutions)
         if self.backend == "mjx":
             return mjx_rollout(controls, self.spec, self.slope_deg, self.accuracy, worlds,
-                               quality, impl=self.impl)
+                               quality, impl=self.impl, steer=steer)
         return native_rollout_callback(controls, self.spec, self.slope_deg, self.accuracy,
-                                       worlds, quality)
+                                       worlds, quality, steer=steer)
 
     def rollout(self, solutions: jax.Array, worlds: Worlds | None = None,
                 quality: bool = False) -> dict[str, jax.Array]:
@@ -298,13 +315,18 @@ class GaitProblem(Box):
             horizon=float(horizon if horizon is not None else self.horizon))
         quality = True  # the actuator envelope, for every robot
         controls = couple_controls(jax.jit(prob.controls)(x), prob.spec)
+        steer = prob.steer_inputs(x)
         if prob.backend == "mjx":
             run = jax.jit(lambda c: mjx_rollout(c, prob.spec, prob.slope_deg, prob.accuracy,
-                                                quality=quality, record=True, impl=prob.impl))
+                                                quality=quality, record=True, impl=prob.impl,
+                                                steer=steer))
             out = jax.tree.map(np.asarray, run(controls))
         else:
+            if steer is not None:
+                steer = steer._replace(dcontrols=np.asarray(
+                    couple_controls(steer.dcontrols, prob.spec)))
             out = native_rollout(np.asarray(controls), prob.spec, prob.slope_deg, prob.accuracy,
-                                 quality=quality, record_qpos=True)
+                                 quality=quality, record_qpos=True, steer=steer)
         trace, qpos = np.asarray(out["trace"]), np.asarray(out["qpos"])
         summary = prob.summarize(jnp.asarray(trace))
         metrics = gait_fitness(summary, prob.direction_deg, prob.turn)
@@ -550,6 +572,7 @@ def make_gait_problem(
     turn: str | None = None,
     constrained: bool = False,
     ik: str = "auto",
+    steering: Steering | None = None,
 ) -> GaitProblem:
     """A :class:`GaitProblem` for a robot (a shipped one's name: "nao", "ant", ..., or the path
     of a spec .json, see docs/robots.md) and backend ("auto", "mjx",
@@ -560,7 +583,8 @@ def make_gait_problem(
     CUDA, "auto" = warp where it can run); ``constrained`` maximises speed under the
     constraints of :mod:`eaco_jax.gait.constraints` (a :class:`ConstrainedGaitProblem`);
     ``ik`` the biped's leg IK (:func:`~eaco_jax.gait.walk_engine.uses_analytic_ik`: "auto",
-    "analytic" needs the NAO's leg geometry, "generic" works on any leg chain)."""
+    "analytic" needs the NAO's leg geometry, "generic" works on any leg chain); ``steering``
+    the heading controller of :mod:`eaco_jax.gait.steer` (a walking biped only)."""
     if isinstance(robot, RobotSpec):
         spec = robot
     else:
@@ -602,6 +626,14 @@ def make_gait_problem(
         uses_analytic_ik(spec, ik)  # a ConfigError line for an unknown or unusable choice
     elif ik not in IK_CHOICES:
         raise ProblemError(f"ik must be one of {', '.join(IK_CHOICES)}, got {ik!r}")
+    if steering is not None:
+        if not isinstance(steering, Steering):
+            raise ProblemError(f"steering must be a Steering, got {type(steering).__name__}")
+        if spec.gait != "biped":
+            raise ProblemError(f"steering needs a biped's walk engine (a turn rate); robot "
+                               f"{spec.name!r} is a {spec.gait}: drop steering")
+        if turn is not None:
+            raise ProblemError("a turning gait has no heading to hold: drop steering or turn")
     lo, hi = bounds(spec, ik)
     name = f"gait-{spec.name}"
     cls = ConstrainedGaitProblem if constrained else GaitProblem
@@ -609,7 +641,7 @@ def make_gait_problem(
         lower=jnp.asarray(lo), upper=jnp.asarray(hi), spec=spec, backend=backend,
         horizon=float(horizon), direction_deg=float(direction_deg), slope_deg=float(slope_deg),
         accuracy=accuracy, name=name, robust=robust, penalty=penalty,
-        penalty_weight=float(penalty_weight), impl=impl, turn=turn, ik=ik)
+        penalty_weight=float(penalty_weight), impl=impl, turn=turn, ik=ik, steering=steering)
 
 
 IMPLS = ("auto", "jax", "warp")

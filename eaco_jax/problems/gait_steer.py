@@ -253,6 +253,9 @@ def make_steered_problem(robot: str = "nao", *, steer: SteerConfig | None = None
         raise ProblemError(f"steer must be a SteerConfig, got {type(steer).__name__}")
     if not isinstance(walker_physics, bool | np.bool_):
         raise ProblemError(f"walker_physics must be True or False, got {walker_physics!r}")
+    if kwargs.get("steering") is not None:
+        raise ProblemError("a steered-command search walks the route walker's own commands: "
+                           "drop steering")
     base = make_gait_problem(robot, **kwargs)
     if base.spec.gait != "biped":
         raise ProblemError(f"robot {base.spec.name!r} walks a {base.spec.gait} gait: steering "

@@ -75,6 +75,18 @@ def _check_robust(robust: int, trials: int, penalty: str | None) -> None:
             raise ConfigError(f"{name} must be an integer >= 0, got {value!r}")
     if penalty not in (None, "power", "cot"):
         raise ConfigError(f"penalty={penalty!r} is not one of power, cot")
+
+
+def _check_noise(value: float | None) -> None:
+    import math
+
+    from eaco_jax.errors import ConfigError
+
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)
+                              or not math.isfinite(value) or not 0 <= value <= 0.1):
+        raise ConfigError(f"target_noise must be a number of radians in [0, 0.1], got {value!r}")
+
+
 EVAL_HORIZON = 20.0
 INIT_RADIUS = 0.15
 """``init`` search box: +/- this fraction of each parameter's range around the stored gait."""
@@ -164,11 +176,18 @@ class GaitSettings:
                              "many) in selection-stream worlds and keep the best; 0 = the "
                              "search's best")
     select_worlds: int = setting(64, "selection-stream worlds per finalist (with --finalists)")
+    steer: bool = setting(False, "close the heading loop: the walk engine's turn rate follows "
+                          "the torso's heading and the line of the desired direction "
+                          "(eaco_jax.gait.steer defaults); searched, selected and tested so")
+    target_noise: float | None = setting(None, "std of the randomised worlds' joint-target "
+                                         "noise, rad (default 0.005; the 12-bit encoders' "
+                                         "quantisation is 0.00044, docs/motors.md)")
 
     def __post_init__(self) -> None:
         from eaco_jax.errors import ConfigError
 
         check_settings(self, "ants", "iterations", "max_evaluations", "select_worlds")
+        _check_noise(self.target_noise)
         _check_robust(self.robust, self.trials, self.penalty)
         _check_robust(self.finalists, 0, None)
         if self.constraint_method != "epsilon" and not self.constrained:
@@ -206,9 +225,14 @@ class GaitEvalSettings:
                                    "the walk (trace every second, plot, firmware limit; with "
                                    "--trials in those worlds, instead of the plain trials); "
                                    "default: on for a horizon of 60 s or more")
+    steer: bool | None = setting(None, "close the heading loop as the gait was searched "
+                                 "(default: the file's steering, else open loop)")
+    target_noise: float | None = setting(None, "joint-target noise std of the trials' worlds, "
+                                         "rad (default: the file's, else 0.005)")
 
     def __post_init__(self) -> None:
         check_settings(self)
+        _check_noise(self.target_noise)
         _check_robust(0, self.trials, None)
         object.__setattr__(self, "robot", absolute_spec(self.robot))
 
@@ -372,6 +396,8 @@ def _setting(problem: Any) -> dict[str, Any]:
         out["turn"] = problem.turn
     if problem.ik != "auto":
         out["ik"] = problem.ik
+    if problem.steering is not None:
+        out["steering"] = problem.steering.record()
     return out
 
 
@@ -393,14 +419,26 @@ def _problem(robot: str, backend: str, horizon: float, direction: float, slope: 
              impl: str = "auto", robust: int = 0, aggregate: str = "cvar",
              penalty: str | None = None, penalty_weight: float = 0.0,
              turn: str | None = None, seed: int = 0, constrained: bool = False,
-             ik: str = "auto") -> Any:
+             ik: str = "auto", steering: Any = None, target_noise: float | None = None) -> Any:
     from eaco_jax.problems.gait import RobustConfig, make_gait_problem
 
-    cfg = RobustConfig(R=int(robust), aggregate=aggregate, seed=int(seed)) if robust else None
+    noise = {} if target_noise is None else {"target_noise": float(target_noise)}
+    cfg = (RobustConfig(R=int(robust), aggregate=aggregate, seed=int(seed), **noise)
+           if robust else None)
     return make_gait_problem(robot, backend=backend, horizon=float(horizon),
                              direction_deg=float(direction), slope_deg=float(slope), impl=impl,
                              robust=cfg, penalty=penalty, penalty_weight=float(penalty_weight),
-                             turn=turn, constrained=constrained, ik=ik)
+                             turn=turn, constrained=constrained, ik=ik, steering=steering)
+
+
+def steering_of(on: bool | None, data: dict[str, Any] | None = None) -> Any:
+    """The heading controller: ``on`` True -> the defaults, False -> none, None -> the stored
+    record's ``steering`` (``data``), else none."""
+    from eaco_jax.gait.steer import Steering
+
+    if on is None:
+        return Steering.from_record((data or {}).get("steering"))
+    return Steering() if on else None
 
 
 def narrowed_around(problem: Any, init: str | Path) -> tuple[Any, np.ndarray]:
@@ -422,7 +460,7 @@ def build(s: GaitSettings) -> Built:
 
     problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope, s.impl, s.robust,
                        s.aggregate, s.penalty, s.penalty_weight, s.turn, s.seed, s.constrained,
-                       ik=s.ik)
+                       ik=s.ik, steering=steering_of(s.steer), target_noise=s.target_noise)
     search = problem
     extra: dict[str, Any] = {"full_problem": problem}
     if s.init is not None:
@@ -446,18 +484,19 @@ def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
 
 
 def select_finalists(problem: Any, archive: np.ndarray, k: int, n: int,
-                     seed: int) -> tuple[np.ndarray, dict[str, Any]]:
+                     seed: int, config: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
     """The best of the archive's first ``k`` gaits (the colony keeps its archive best first)
     re-evaluated in ``n`` worlds of the selection stream of ``seed``: by Deb's rule (least
     violation, then speed) for a constrained problem, else by the aggregated fitness.
-    Returns the chosen gait and the ``selection`` record (stream, worlds, per finalist)."""
+    Returns the chosen gait and the ``selection`` record (stream, worlds, per finalist).
+    World ranges: the problem's ``robust``, else ``config``, else the defaults."""
     import jax
     import jax.numpy as jnp
 
     from eaco_jax.gait.worlds import RobustConfig, stream_key
 
     cand = np.asarray(archive, np.float32)[:k]
-    cfg = problem.robust or RobustConfig(seed=int(seed))
+    cfg = problem.robust or config or RobustConfig(seed=int(seed))
     prob = problem.replace(robust=dataclasses.replace(cfg, R=int(n)))
     worlds = prob.worlds(stream_key(int(seed), "selection", 0), int(n))
     x = jnp.clip(jnp.asarray(cand), prob.lower, prob.upper)
@@ -500,7 +539,8 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     selection = None
     if s.finalists:
         best, selection = select_finalists(problem, np.asarray(result.state.archive_x),
-                                           int(s.finalists), int(s.select_worlds), int(s.seed))
+                                           int(s.finalists), int(s.select_worlds), int(s.seed),
+                                           trial_config(int(s.seed), s.target_noise))
     sim = problem.simulate(best, record=True)
     seconds = time.perf_counter() - t0
     history = fitness_history(result.history, problem.constrained)
@@ -528,7 +568,8 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
         record["init_fitness"] = problem.simulate(built.extra["init_vec"], record=False)["fitness"]
     if s.robust:
         record["robust"] = {"R": int(s.robust), "aggregate": s.aggregate, "seed": int(s.seed),
-                            "stream": "optimisation"}
+                            "stream": "optimisation",
+                            "target_noise": float(problem.robust.target_noise)}
     if problem.constrained:
         record["constraint_method"] = s.constraint_method
         record["history_violation"] = history["best_violation"].tolist()
@@ -540,7 +581,9 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
         from eaco_jax.gait.validate import evaluate_trials
 
         record["trials"] = evaluate_trials(problem, best, n=int(s.trials), seed=int(s.seed),
-                                           stream="test")
+                                           stream="test",
+                                           config=problem.robust or trial_config(
+                                               int(s.seed), s.target_noise))
     if s.out is not None:
         from eaco_jax import plots
         from eaco_jax.outputs import write_history_csv, write_json
@@ -603,12 +646,25 @@ def build_eval(s: GaitEvalSettings) -> Built:
     turn = _stored(data, "turn")
     ik = s.ik or _stored(data, "ik") or "auto"
     problem = _problem(str(robot), s.backend, float(horizon), direction, slope, s.impl,
-                       turn=turn, ik=str(ik))
+                       turn=turn, ik=str(ik), steering=steering_of(s.steer, data))
     vec = params_vector(data, problem, str(s.params_file))
     seed = s.seed if s.seed is not None else _stored(data, "seed")
     if seed is None and isinstance(data.get("optimisation"), dict):
         seed = data["optimisation"].get("seed")
-    return Built(problem, None, None, {}, extra={"vector": vec, "seed": int(seed or 0)})
+    noise = s.target_noise
+    if noise is None and isinstance(data.get("robust"), dict):
+        noise = data["robust"].get("target_noise")
+    _check_noise(noise)
+    return Built(problem, None, None, {}, extra={"vector": vec, "seed": int(seed or 0),
+                                                 "target_noise": noise})
+
+
+def trial_config(seed: int, target_noise: float | None) -> Any:
+    """The trials' world ranges: the defaults with ``target_noise`` if given."""
+    from eaco_jax.gait.worlds import RobustConfig
+
+    noise = {} if target_noise is None else {"target_noise": float(target_noise)}
+    return RobustConfig(seed=int(seed), **noise)
 
 
 def run_eval(s: GaitEvalSettings, *, progress: bool = False,
@@ -618,6 +674,7 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
     built = build_eval(s)
     problem, vec = built.problem, built.extra["vector"]
     thermal = thermal_wanted(s.thermal, problem)  # refuses before any simulation
+    cfg = trial_config(built.extra["seed"], built.extra["target_noise"])
     t0 = time.perf_counter()
     sim = problem.simulate(vec, record=s.out is not None)
     record: dict[str, Any] = {
@@ -634,12 +691,13 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
 
         record["thermal"] = thermal_walk(
             problem.replace(accuracy="accurate") if s.accurate else problem, vec,
-            n=int(s.trials), seed=built.extra["seed"], stream=s.stream)
+            n=int(s.trials), seed=built.extra["seed"], stream=s.stream, config=cfg)
     elif s.trials:
         from eaco_jax.gait.validate import evaluate_trials
 
         record["trials"] = evaluate_trials(problem, vec, n=int(s.trials), accurate=s.accurate,
-                                           seed=built.extra["seed"], stream=s.stream)
+                                           seed=built.extra["seed"], stream=s.stream,
+                                           config=cfg)
     if s.export is not None:
         from eaco_jax.gait.validate import export_run
 

@@ -1,0 +1,129 @@
+"""Heading feedback for a walking gait: the walk engine's turn rate driven by the torso's pose.
+
+An open-loop gait walks where its joint errors take it: a world's target noise, masses and
+motor tolerances turn it a few degrees over twenty seconds, and the drift constraint of
+:mod:`eaco_jax.gait.constraints` binds. A real NAO walk engine closes that loop with the
+torso's inertial unit and its odometry. :class:`Steering` does the same inside the gait
+rollouts of both backends, at every control step, from the torso pose at the step's start:
+
+* the error ``e = -yaw - atan(cross / lookahead)`` [rad]: the heading back to the desired
+  direction (the torso starts facing it, yaw 0) plus the turn toward the desired line through
+  the start (``cross``: metres left of it); ``lookahead = inf`` holds the heading only;
+* a first-order low-pass over ``tau`` seconds (``z += (e - z) dt / (tau + dt)``), which keeps
+  the torso's sway within a step out of the command;
+* the turn correction ``c = clip(gain z, -max_rate, max_rate)`` [rad/s].
+
+The joint targets become ``u(t) + c du/d(turn_rate)(t)``: the walk engine's targets at turn
+rate ``turn_rate + c``, to first order (:func:`turn_sensitivity`; the foot yaw is linear in the
+turn rate, the leg IK is not, and the second-order term is far below a joint's quantisation at
+the clamp). A world's latency delays the correction with the command: a world ``L >= 1``
+control steps late uses the correction of the step before (one step of memory, which covers
+the default latency range ``0..1``). With targets interpolated between control steps the next
+step's target carries this step's correction, so the command stays continuous.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from eaco_jax.errors import ProblemError
+
+
+@dataclasses.dataclass(frozen=True)
+class Steering:
+    """The heading controller's settings (see the module docstring)."""
+
+    gain: float = 1.0  # rad/s of turn per rad of error
+    lookahead: float = math.inf  # m; inf: hold the heading only
+    max_rate: float = 0.3  # clamp of the correction [rad/s] (the engine's turn_rate box)
+    tau: float = 0.5  # low-pass time constant [s]
+
+    def __post_init__(self) -> None:
+        for name in ("gain", "max_rate", "tau"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise ProblemError(f"steering {name} must be a finite number >= 0, got {v!r}")
+        v = self.lookahead
+        if not (isinstance(v, int | float) and not math.isnan(v) and v > 0):
+            raise ProblemError(f"steering lookahead must be > 0 (inf: heading only), got {v!r}")
+
+    def record(self) -> dict[str, Any]:
+        """JSON-ready settings (``lookahead`` ``None`` for infinity)."""
+        d = dataclasses.asdict(self)
+        d["lookahead"] = None if math.isinf(self.lookahead) else self.lookahead
+        return d
+
+    @classmethod
+    def from_record(cls, d: dict[str, Any] | None) -> Steering | None:
+        """The settings of :meth:`record` (``None`` stays ``None``: no feedback)."""
+        if d is None:
+            return None
+        if not isinstance(d, dict) or set(d) - {"gain", "lookahead", "max_rate", "tau"}:
+            raise ProblemError(f"steering must be a mapping of gain, lookahead, max_rate, tau; "
+                               f"got {d!r}")
+        d = dict(d)
+        if d.get("lookahead", 0.0) is None:
+            d["lookahead"] = math.inf
+        return cls(**{k: float(v) for k, v in d.items()})
+
+
+class SteerInputs(NamedTuple):
+    """What a rollout needs to steer: the targets' sensitivity to the turn rate ``(A, T, nu)``
+    (joint coupling applied), the settings and the desired direction [rad]."""
+
+    dcontrols: Any
+    steering: Steering
+    direction: float
+
+
+class SteerState(NamedTuple):
+    """Per rollout ``(B,)``: the filtered error and the correction of the step before."""
+
+    z: Any
+    c_prev: Any
+
+
+def turn_sensitivity(controls_fn, solutions: jax.Array, turn_index: int) -> jax.Array:
+    """``d controls / d turn_rate`` ``(A, T, nu)`` of ``controls_fn(solutions)``, forward mode."""
+    tangent = jnp.zeros_like(solutions).at[:, turn_index].set(1.0)
+    return jax.jvp(controls_fn, (solutions,), (tangent,))[1]
+
+
+def start_state(nb: int, xp=jnp) -> SteerState:
+    z = xp.zeros((nb,), xp.float32)
+    return SteerState(z, z)
+
+
+def _wrap(a, xp):
+    return xp.arctan2(xp.sin(a), xp.cos(a))
+
+
+def update(state: SteerState, trace_row, start_xy, direction: float, cfg: Steering,
+           dt: float, xp=jnp):
+    """One control step of the controller from the torso row ``(B, 7)`` (position, up, yaw)
+    and the start position ``(B, 2)``. Returns the new state and the correction ``(B,)`` [rad/s]
+    this step's command uses (the previous one where the world's latency calls for it: see
+    :func:`delayed`)."""
+    ux, uy = math.cos(direction), math.sin(direction)
+    dx = trace_row[:, 0] - start_xy[:, 0]
+    dy = trace_row[:, 1] - start_xy[:, 1]
+    cross = dy * ux - dx * uy
+    err = -_wrap(trace_row[:, 6], xp)
+    if not math.isinf(cfg.lookahead):
+        err = err - xp.arctan(cross / cfg.lookahead)
+    err = _wrap(err, xp)
+    z = state.z + (err - state.z) * (dt / (cfg.tau + dt))
+    c = xp.clip(cfg.gain * z, -cfg.max_rate, cfg.max_rate).astype(xp.float32)
+    return SteerState(z.astype(xp.float32), c), c
+
+
+def delayed(c, c_prev, latency):
+    """The correction a world with ``latency`` control steps (``(B,)`` int) applies now."""
+    return np.where(latency >= 1, c_prev, c) if isinstance(c, np.ndarray) else jnp.where(
+        latency >= 1, c_prev, c)
