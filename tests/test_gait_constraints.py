@@ -19,6 +19,7 @@ import pytest
 from typer.testing import CliRunner
 
 from eaco_jax.cli import app
+from eaco_jax.errors import ProblemError
 from eaco_jax.gait import constraints as gc
 from eaco_jax.gait.motors import motor_model
 from eaco_jax.gait.worlds import STREAMS, RobustConfig, optimisation_key, stream_key
@@ -210,3 +211,31 @@ def test_constrained_settings_errors():
         res = CliRunner().invoke(app, args)
         assert res.exit_code == 2, (args, res.output)
         assert text in res.output and res.output.strip().count("\n") == 0, res.output
+
+
+def test_search_margin_tightens_endurance_slip_and_drift_only():
+    g = jnp.zeros((1, 5)) - 0.05
+    out = np.asarray(gc.with_margin(g, 0.1, gc.CONSTRAINTS))[0]
+    assert np.allclose(out, [0.05, -0.05, 0.05, 0.05, -0.05])  # endurance current slip drift falls
+    present = ("endurance", "current", "slip", "falls")  # a turning gait: no drift column
+    out = np.asarray(gc.with_margin(jnp.zeros((1, 4)), 0.2, present))[0]
+    assert np.allclose(out, [0.2, 0.0, 0.2, 0.0])
+    assert gc.with_margin(g, 0.0, gc.CONSTRAINTS) is g
+
+
+def test_search_margin_acts_in_evaluate_not_in_report():
+    base = make_gait_problem("nao", backend="native", horizon=1.0, constrained=True)
+    tight = make_gait_problem("nao", backend="native", horizon=1.0, constrained=True, margin=0.3)
+    x = jnp.asarray(np.stack([np.asarray(base.lower), np.asarray(base.upper)]) * 0.5
+                    + 0.5 * np.asarray(base.lower))
+    v0 = np.asarray(base.evaluate(x).violation)
+    v1 = np.asarray(tight.evaluate(x).violation)
+    _, _, g = base.constraints(jnp.clip(x, base.lower, base.upper))
+    want = np.asarray(gc.violation(gc.with_margin(g, 0.3, base.constraint_names)))
+    assert np.allclose(v1, want, atol=1e-6) and np.all(v1 > v0)
+    assert tight.report(np.asarray(x[0]))["violation"] == pytest.approx(
+        base.report(np.asarray(x[0]))["violation"], abs=1e-6)
+    with pytest.raises(ProblemError, match="margin"):
+        make_gait_problem("nao", backend="native", margin=0.1)
+    with pytest.raises(ProblemError, match="margin"):
+        make_gait_problem("nao", backend="native", constrained=True, margin=1.5)

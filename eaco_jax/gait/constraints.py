@@ -117,6 +117,24 @@ def _ordered(vals: dict[str, Any]) -> list[str]:
     return [k for k in CONSTRAINTS if k in vals]
 
 
+#: the constraints a search margin tightens: those whose worst of R worlds grows with R
+#: (a margin on ``current`` or ``falls`` would mean nothing: the physics holds the current at
+#: its limit, and a fall is a count)
+MARGIN_CONSTRAINTS = ("endurance", "slip", "drift")
+
+
+def with_margin(g: jnp.ndarray, margin: float, present: tuple[str, ...]) -> jnp.ndarray:
+    """Normalised constraints ``g`` ``(m, p)`` (columns ``present``, in :data:`CONSTRAINTS`
+    order) tightened by ``margin`` on :data:`MARGIN_CONSTRAINTS`: they hold only with
+    ``margin`` of their scale to spare (``0.1``: 5 C below the firmware limit, 0.005 m/m of
+    slip, 1 degree of drift over 20 s)."""
+    if margin == 0.0:
+        return g
+    add = jnp.asarray([margin if k in MARGIN_CONSTRAINTS else 0.0
+                       for k in CONSTRAINTS if k in present], g.dtype)
+    return g + add
+
+
 def violation(g: jnp.ndarray) -> jnp.ndarray:
     """Total violation ``(m,)`` of normalised constraints ``(m, p)``: sum of ``max(g, 0)``, the
     constrained problems' rule (:func:`eaco_jax.problems.constrained.violation_of`)."""

@@ -380,7 +380,14 @@ class ConstrainedGaitProblem(GaitProblem):
     """Maximise speed (``f = -speed``) subject to the constraints of
     :mod:`eaco_jax.gait.constraints`, each from the same batched rollout over the R worlds;
     ``violation`` is the sum of their normalised excesses, so the colony's constraint handling
-    (epsilon-constrained, Deb, penalty) applies as to any constrained problem."""
+    (epsilon-constrained, Deb, penalty) applies as to any constrained problem.
+
+    ``margin`` (search only): :meth:`evaluate` tightens the endurance, slip and drift
+    constraints by this share of their scale (:func:`~eaco_jax.gait.constraints.with_margin`),
+    since the worst of the search's R worlds understates the worst of many; ``report``,
+    ``host_check``, the selection and the trials judge against the limits themselves."""
+
+    margin: float = struct.field(pytree_node=False, default=0.0)
 
     @property
     def constrained(self) -> bool:
@@ -431,6 +438,7 @@ class ConstrainedGaitProblem(GaitProblem):
         picks from the optimisation stream (see :class:`GaitProblem`)."""
         x, worlds = self.colony_in_worlds(solutions, key)
         speed, _, g = self.constraints(x, worlds)
+        g = gc.with_margin(g, self.margin, self.constraint_names)
         speed = jnp.where(jnp.isfinite(speed), speed, 0.0).astype(self.dtype)
         return Evaluation(f=-speed, violation=gc.violation(g).astype(self.dtype))
 
@@ -573,6 +581,7 @@ def make_gait_problem(
     constrained: bool = False,
     ik: str = "auto",
     steering: Steering | None = None,
+    margin: float = 0.0,
 ) -> GaitProblem:
     """A :class:`GaitProblem` for a robot (a shipped one's name: "nao", "ant", ..., or the path
     of a spec .json, see docs/robots.md) and backend ("auto", "mjx",
@@ -584,7 +593,8 @@ def make_gait_problem(
     constraints of :mod:`eaco_jax.gait.constraints` (a :class:`ConstrainedGaitProblem`);
     ``ik`` the biped's leg IK (:func:`~eaco_jax.gait.walk_engine.uses_analytic_ik`: "auto",
     "analytic" needs the NAO's leg geometry, "generic" works on any leg chain); ``steering``
-    the heading controller of :mod:`eaco_jax.gait.steer` (a walking biped only)."""
+    the heading controller of :mod:`eaco_jax.gait.steer` (a walking biped only); ``margin``
+    the constrained search's margin (:class:`ConstrainedGaitProblem`)."""
     if isinstance(robot, RobotSpec):
         spec = robot
     else:
@@ -634,14 +644,20 @@ def make_gait_problem(
                                f"{spec.name!r} is a {spec.gait}: drop steering")
         if turn is not None:
             raise ProblemError("a turning gait has no heading to hold: drop steering or turn")
+    if not (isinstance(margin, int | float) and math.isfinite(margin) and 0 <= margin < 1):
+        raise ProblemError(f"margin must be a number in [0, 1), got {margin!r}")
+    if margin and not constrained:
+        raise ProblemError("margin tightens a constrained search: add constrained=True")
     lo, hi = bounds(spec, ik)
     name = f"gait-{spec.name}"
+    extra = {"margin": float(margin)} if constrained else {}
     cls = ConstrainedGaitProblem if constrained else GaitProblem
     return cls(
         lower=jnp.asarray(lo), upper=jnp.asarray(hi), spec=spec, backend=backend,
         horizon=float(horizon), direction_deg=float(direction_deg), slope_deg=float(slope_deg),
         accuracy=accuracy, name=name, robust=robust, penalty=penalty,
-        penalty_weight=float(penalty_weight), impl=impl, turn=turn, ik=ik, steering=steering)
+        penalty_weight=float(penalty_weight), impl=impl, turn=turn, ik=ik, steering=steering,
+        **extra)
 
 
 IMPLS = ("auto", "jax", "warp")

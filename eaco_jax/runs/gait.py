@@ -179,6 +179,10 @@ class GaitSettings:
     steer: bool = setting(False, "close the heading loop: the walk engine's turn rate follows "
                           "the torso's heading and the line of the desired direction "
                           "(eaco_jax.gait.steer defaults); searched, selected and tested so")
+    constraint_margin: float = setting(0.0, "with --constrained: the search's worlds must meet "
+                                       "the endurance, slip and drift limits with this share "
+                                       "of each limit's scale to spare (0.1: 5 C, 0.005 m/m, "
+                                       "1 deg); selection and trials judge the limits themselves")
     target_noise: float | None = setting(None, "std of the randomised worlds' joint-target "
                                          "noise, rad (default 0.005; the 12-bit encoders' "
                                          "quantisation is 0.00044, docs/motors.md)")
@@ -195,6 +199,8 @@ class GaitSettings:
                               "--constrained (an unconstrained gait search has no violation)")
         if self.constrained and self.penalty is not None:
             raise ConfigError("--constrained replaces the energy penalty: drop --penalty")
+        if self.constraint_margin and not self.constrained:
+            raise ConfigError("--constraint-margin needs --constrained")
         object.__setattr__(self, "robot", absolute_spec(self.robot))
 
 
@@ -419,7 +425,8 @@ def _problem(robot: str, backend: str, horizon: float, direction: float, slope: 
              impl: str = "auto", robust: int = 0, aggregate: str = "cvar",
              penalty: str | None = None, penalty_weight: float = 0.0,
              turn: str | None = None, seed: int = 0, constrained: bool = False,
-             ik: str = "auto", steering: Any = None, target_noise: float | None = None) -> Any:
+             ik: str = "auto", steering: Any = None, target_noise: float | None = None,
+             margin: float = 0.0) -> Any:
     from eaco_jax.problems.gait import RobustConfig, make_gait_problem
 
     noise = {} if target_noise is None else {"target_noise": float(target_noise)}
@@ -428,7 +435,8 @@ def _problem(robot: str, backend: str, horizon: float, direction: float, slope: 
     return make_gait_problem(robot, backend=backend, horizon=float(horizon),
                              direction_deg=float(direction), slope_deg=float(slope), impl=impl,
                              robust=cfg, penalty=penalty, penalty_weight=float(penalty_weight),
-                             turn=turn, constrained=constrained, ik=ik, steering=steering)
+                             turn=turn, constrained=constrained, ik=ik, steering=steering,
+                             margin=float(margin))
 
 
 def steering_of(on: bool | None, data: dict[str, Any] | None = None) -> Any:
@@ -460,7 +468,8 @@ def build(s: GaitSettings) -> Built:
 
     problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope, s.impl, s.robust,
                        s.aggregate, s.penalty, s.penalty_weight, s.turn, s.seed, s.constrained,
-                       ik=s.ik, steering=steering_of(s.steer), target_noise=s.target_noise)
+                       ik=s.ik, steering=steering_of(s.steer), target_noise=s.target_noise,
+                       margin=s.constraint_margin)
     search = problem
     extra: dict[str, Any] = {"full_problem": problem}
     if s.init is not None:
@@ -572,6 +581,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
                             "target_noise": float(problem.robust.target_noise)}
     if problem.constrained:
         record["constraint_method"] = s.constraint_method
+        record["constraint_margin"] = float(s.constraint_margin)
         record["history_violation"] = history["best_violation"].tolist()
         record["search"] = {"speed": -float(np.asarray(result.f)),
                             "violation": float(np.asarray(result.violation)),
