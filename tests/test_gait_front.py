@@ -28,11 +28,13 @@ def test_a_short_run_writes_the_front_files_and_says_why_the_front_is_empty(tmp_
     record has an empty front, the least-violating gait and its violation, and the files."""
     out = tmp_path / "front"
     code, last = _cli("gait-front", "--backend", "native", "--ants", "4", "--iterations",
-                      "2", "--horizon", "1", "--robust", "2", "--out", str(out))
+                      "2", "--horizon", "1", "--robust", "2", "--out", str(out), "--steer",
+                      "--target-noise", "0.0004")
     assert code == 0, last
     assert "no gait met every constraint in 2 worlds (least violation" in last
     rec = json.loads((out / "front.json").read_text())
     assert rec["front_size"] == 0 and rec["front"] == []
+    assert rec["steering"]["gain"] == 1.0 and rec["target_noise"] == pytest.approx(0.0004)
     assert rec["least_violation"]["violation"] > 0
     assert set(rec["least_violation"]["params"]) >= {"step_length", "period"}
     assert rec["constraints"] == ["current", "slip", "drift", "falls"]
@@ -79,6 +81,7 @@ def test_the_front_csv_has_one_row_per_gait_with_its_parameters(tmp_path):
     (("--ants", "1"), "ants must be >= 2 (the archive ranks them), got 1; e.g. --ants 32"),
     (("--robust", "-1"), "robust must be >= 0 (0: the nominal world only), got -1"),
     (("--second", "speed"), "second='speed' is not one of endurance, cot"),
+    (("--target-noise", "-1"), "target_noise must be a number of radians in [0, 0.1]"),
 ])
 def test_bad_settings_are_one_line(args, says):
     code, last = _cli("gait-front", *args)

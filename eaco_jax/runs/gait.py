@@ -77,7 +77,7 @@ def _check_robust(robust: int, trials: int, penalty: str | None) -> None:
         raise ConfigError(f"penalty={penalty!r} is not one of power, cot")
 
 
-def _check_noise(value: float | None) -> None:
+def check_noise(value: float | None) -> None:
     import math
 
     from eaco_jax.errors import ConfigError
@@ -191,7 +191,7 @@ class GaitSettings:
         from eaco_jax.errors import ConfigError
 
         check_settings(self, "ants", "iterations", "max_evaluations", "select_worlds")
-        _check_noise(self.target_noise)
+        check_noise(self.target_noise)
         _check_robust(self.robust, self.trials, self.penalty)
         _check_robust(self.finalists, 0, None)
         if self.constraint_method != "epsilon" and not self.constrained:
@@ -238,7 +238,7 @@ class GaitEvalSettings:
 
     def __post_init__(self) -> None:
         check_settings(self)
-        _check_noise(self.target_noise)
+        check_noise(self.target_noise)
         _check_robust(0, self.trials, None)
         object.__setattr__(self, "robot", absolute_spec(self.robot))
 
@@ -664,7 +664,7 @@ def build_eval(s: GaitEvalSettings) -> Built:
     noise = s.target_noise
     if noise is None and isinstance(data.get("robust"), dict):
         noise = data["robust"].get("target_noise")
-    _check_noise(noise)
+    check_noise(noise)
     return Built(problem, None, None, {}, extra={"vector": vec, "seed": int(seed or 0),
                                                  "target_noise": noise})
 

@@ -33,7 +33,15 @@ from eaco_jax.runs.base import (
     params_from,
     setting,
 )
-from eaco_jax.runs.gait import BACKENDS, IK_CHOICES, IMPLS, ROBOT_HELP, narrowed_around
+from eaco_jax.runs.gait import (
+    BACKENDS,
+    IK_CHOICES,
+    IMPLS,
+    ROBOT_HELP,
+    check_noise,
+    narrowed_around,
+    steering_of,
+)
 from eaco_jax.runs.tsp import PARAMS_HELP
 
 ensure_headless_gl()
@@ -71,9 +79,14 @@ class GaitFrontSettings:
     max_seconds: float | None = setting(None, "stop after this many compute seconds")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting("out/gait-front", "folder for front.json, front.csv and plots")
+    steer: bool = setting(False, "close the heading loop (eaco_jax.gait.steer defaults), as "
+                          "eaco gait --steer")
+    target_noise: float | None = setting(None, "joint-target noise std of the worlds, rad "
+                                         "(default 0.005; the encoders' quantisation: 0.000443)")
 
     def __post_init__(self) -> None:
         check_settings(self, "ants", "iterations", "max_evaluations")
+        check_noise(self.target_noise)
         if self.ants < 2:
             raise ConfigError(f"ants must be >= 2 (the archive ranks them), got {self.ants}; "
                               "e.g. --ants 32")
@@ -87,9 +100,11 @@ def build(s: GaitFrontSettings) -> Built:
     from eaco_jax.problems.gait_mo import make_gait_mo_problem
     from eaco_jax.strategies.mo_eaco import MOEACO
 
-    robust = RobustConfig(R=int(s.robust), seed=int(s.seed)) if s.robust else None
+    noise = {} if s.target_noise is None else {"target_noise": float(s.target_noise)}
+    robust = RobustConfig(R=int(s.robust), seed=int(s.seed), **noise) if s.robust else None
     problem = make_gait_mo_problem(s.robot, s.second, backend=s.backend, impl=s.impl,
-                                   horizon=float(s.horizon), robust=robust, ik=s.ik)
+                                   horizon=float(s.horizon), robust=robust, ik=s.ik,
+                                   steering=steering_of(s.steer))
     if s.init is not None:  # the box narrowed around the stored gait, as eaco gait --init
         problem, _ = narrowed_around(problem, s.init)
     strategy = MOEACO(num_ants=int(s.ants), archive_size=int(s.ants))
@@ -128,6 +143,8 @@ def run(s: GaitFrontSettings, *, progress: bool = False,
     record: dict[str, Any] = {
         "robot": problem.spec.name, "second": s.second, "backend": problem.backend,
         "horizon": float(s.horizon), "robust": int(s.robust), "seed": int(s.seed),
+        "target_noise": float(problem.robust.target_noise) if problem.robust else None,
+        **({"steering": problem.steering.record()} if problem.steering else {}),
         "ants": int(s.ants), "stream": "optimisation",
         "objectives": list(LABELS[s.second]),
         "constraints": list(problem.constraint_names),
