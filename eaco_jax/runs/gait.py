@@ -176,16 +176,16 @@ class GaitSettings:
                              "many) in selection-stream worlds and keep the best; 0 = the "
                              "search's best")
     select_worlds: int = setting(64, "selection-stream worlds per finalist (with --finalists)")
-    steer: bool = setting(False, "close the heading loop: the walk engine's turn rate follows "
-                          "the torso's heading and the line of the desired direction "
-                          "(eaco_jax.gait.steer defaults); searched, selected and tested so")
+    steer: bool = setting(False, "close the heading loop: the walk engine's turn rate holds "
+                          "the torso's heading (eaco_jax.gait.steer defaults); the gait is "
+                          "searched, selected and tested so")
     constraint_margin: float = setting(0.0, "with --constrained: the search's worlds must meet "
                                        "the endurance, slip and drift limits with this share "
                                        "of each limit's scale to spare (0.1: 5 C, 0.005 m/m, "
                                        "1 deg); selection and trials judge the limits themselves")
     target_noise: float | None = setting(None, "std of the randomised worlds' joint-target "
                                          "noise, rad (default 0.005; the 12-bit encoders' "
-                                         "quantisation is 0.00044, docs/motors.md)")
+                                         "quantisation is 0.000443, docs/motors.md)")
 
     def __post_init__(self) -> None:
         from eaco_jax.errors import ConfigError
