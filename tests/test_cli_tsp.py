@@ -215,7 +215,7 @@ def read_settings(ck):
     return read_meta(ck)["run_info"]["settings"]
 
 
-def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypatch):
+def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypatch, capsys):
     """A sparse run left on --construction auto without --max-new-edges gets its backend's
     SPARSE_DEFAULTS row (on a GPU: 128 new edges as moves, ants by size, 96 merged) and the focused
     search (LS_FOCUS_WIDTH); a CPU has no row; explicit settings win; 0 turns the focus off; the
@@ -281,8 +281,12 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     st = strategy(construction="scan")  # an explicit construction: no row
     assert (st.max_new_edges, st.construction, st.merge_ants) == (None, "ants", None)
     assert st.num_ants == tsp.colony_defaults(51, "gpu").ants
+    capsys.readouterr()
     st = strategy(max_new_edges=8, construction="moves")  # explicit edges: no row, no merge
     assert (st.max_new_edges, st.merge_ants) == (8, None)
+    assert "leaves out this backend's measured sparse row" in capsys.readouterr().err  # said
+    strategy(max_new_edges=8, construction="moves", ants=40)
+    assert capsys.readouterr().err == ""  # --ants chosen: nothing to say
     st = tsp.build(tsp.TspSettings("eil51", iterations=2)).strategy  # dense: no row
     assert st.max_new_edges is None
     built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -350,6 +351,11 @@ def build(s: TspSettings) -> Built:
         merge = row.merge_ants if merge is None else merge
         if s.ants is None:
             ants = row_ants(row, int(problem.n)) or ants
+    elif row is not None and is_sparse(problem) and s.ants is None \
+            and row_ants(row, int(problem.n)) is not None:
+        print(f"note: an explicit --max-new-edges or --construction leaves out this backend's "
+              f"measured sparse row (its colony size by city count and merged ants): {ants} "
+              "ants from the size table; pass --ants to choose", file=sys.stderr)
     focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
