@@ -76,6 +76,7 @@ from eaco_jax.errors import ProblemError
 from eaco_jax.gait.robot import load_robot
 from eaco_jax.gait.rollout_mjx import mjx_model
 from eaco_jax.gait.rollout_native import initial_state, native_model, substeps
+from eaco_jax.gait.steer import Steering
 from eaco_jax.gait.worlds import RobustConfig
 from eaco_jax.problems.gait import make_gait_problem
 from eaco_jax.strategies.continuous_eaco import ContinuousEACO
@@ -84,28 +85,32 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def gait_problem(robot: str, backend: str, control_steps: int, worlds: int = 1,
-                 impl: str = "auto", constrained: bool = False):
+                 impl: str = "auto", constrained: bool = False, steer: bool = False):
     """The gait problem timed: ``control_steps`` long, R = ``worlds`` randomised worlds per ant
     (the robust fitness; seed 0 of the optimisation stream) when ``worlds`` > 1;
     ``constrained``: the constrained search's problem (speed under the motor, slip, drift and
-    fall constraints, computed in the same rollout)."""
+    fall constraints, computed in the same rollout); ``steer``: with the heading feedback of
+    :mod:`eaco_jax.gait.steer` (its defaults)."""
     spec = load_robot(robot)
     robust = RobustConfig(R=int(worlds), seed=0) if worlds > 1 else None
     kw = {"impl": impl} if backend == "mjx" else {}
     problem = make_gait_problem(robot, backend=backend, horizon=control_steps * spec.control_dt,
-                                robust=robust, constrained=constrained, **kw)
+                                robust=robust, constrained=constrained,
+                                steering=Steering() if steer else None, **kw)
     assert problem.n_steps == control_steps
     return problem
 
 
 def colony_rate(robot: str, backend: str, batch: int, control_steps: int, iterations: int,
                 repeats: int, seed: int = 0, worlds: int = 1,
-                impl: str = "auto", constrained: bool = False) -> dict[str, Any]:
+                impl: str = "auto", constrained: bool = False,
+                steer: bool = False) -> dict[str, Any]:
     """Physics steps/s of the jitted colony loop (ask, batched rollout + fitness, tell):
     physics steps x ants x worlds x iterations / wall seconds."""
     spec = load_robot(robot)
     k = substeps(spec, native_model(spec, 0.0, "fast"))
-    problem = gait_problem(robot, backend, control_steps, worlds, impl, constrained)
+    problem = gait_problem(robot, backend, control_steps, worlds, impl, constrained,
+                           steer)
     strategy = ContinuousEACO(num_ants=batch, archive_size=max(2, batch // 2), refine_ants=0,
                               repair_steps=0)
 
@@ -126,12 +131,13 @@ def colony_rate(robot: str, backend: str, batch: int, control_steps: int, iterat
 
 def evaluate_rate(robot: str, backend: str, batch: int, control_steps: int, repeats: int,
                   seed: int = 0, worlds: int = 1, impl: str = "auto",
-                  constrained: bool = False) -> dict[str, Any]:
+                  constrained: bool = False, steer: bool = False) -> dict[str, Any]:
     """Physics steps/s of ``GaitProblem.evaluate`` alone (walk engine + physics + fitness, no
     colony): separates what the controller costs from what the colony update costs."""
     spec = load_robot(robot)
     k = substeps(spec, native_model(spec, 0.0, "fast"))
-    problem = gait_problem(robot, backend, control_steps, worlds, impl, constrained)
+    problem = gait_problem(robot, backend, control_steps, worlds, impl, constrained,
+                           steer)
     x = random_gaits(problem, batch, seed)
     t0 = time.perf_counter()
     fn = jax.jit(lambda a: problem.evaluate(a)).lower(x).compile()
@@ -251,7 +257,8 @@ def measure(robot: str, backend: str, batch: int, args: argparse.Namespace) -> d
     steps = control_steps * k
     copies = batch * args.worlds
     col = colony_rate(robot, backend, batch, control_steps, args.iterations, args.repeats,
-                      worlds=args.worlds, impl=args.impl, constrained=args.constrained)
+                      worlds=args.worlds, impl=args.impl, constrained=args.constrained,
+                      steer=args.steer)
     impl = col["impl"] if backend == "mjx" else "c"
     raw = walk = None
     if args.no_raw:
@@ -263,10 +270,11 @@ def measure(robot: str, backend: str, batch: int, args: argparse.Namespace) -> d
         raw = raw_native_rate(robot, copies, steps, args.repeats)
     ev = None if args.no_split else evaluate_rate(
         robot, backend, batch, control_steps, args.repeats, worlds=args.worlds, impl=args.impl,
-        constrained=args.constrained)
+        constrained=args.constrained, steer=args.steer)
     rate = lambda d: None if d is None else d["steps_per_s"]  # noqa: E731
     return {"robot": spec.name, "backend": backend, "impl": impl, "batch": batch,
-            "worlds": args.worlds, "constrained": args.constrained, "physics_steps": steps,
+            "worlds": args.worlds, "constrained": args.constrained, "steer": args.steer,
+            "physics_steps": steps,
             "control_steps": control_steps,
             "substeps": k, "timestep_s": spec.control_dt / k,
             "colony_steps_per_s": col["steps_per_s"], "raw_steps_per_s": rate(raw),
@@ -301,6 +309,8 @@ def main() -> None:
     ap.add_argument("--constrained", action="store_true",
                     help="time the constrained search's problem (eaco gait --constrained: "
                          "thermal, current, slip, drift and fall constraints in the rollout)")
+    ap.add_argument("--steer", action="store_true",
+                    help="with the heading feedback of eaco gait --steer (its defaults)")
     ap.add_argument("--out", default=None, help="JSON path (default results/..._<device>.json)")
     args = ap.parse_args()
 
@@ -356,7 +366,7 @@ def main() -> None:
         "host": platform.node(), "cpu_count": os.cpu_count(),
         "command": "python experiments/gait_throughput.py " + " ".join(sys.argv[1:]),
         "date": time.strftime("%Y-%m-%d"), "worlds": args.worlds, "impl": args.impl,
-        "constrained": args.constrained,
+        "constrained": args.constrained, "steer": args.steer,
         "steps_requested": args.steps, "iterations_per_call": args.iterations,
         "repeats": args.repeats, "rows": rows, "native_vs_mjx": native_vs_mjx,
         "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,

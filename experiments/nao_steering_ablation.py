@@ -34,14 +34,12 @@ from pathlib import Path
 
 import jax.numpy as jnp
 import mujoco
+import nao_constraint_worlds as ncw  # a sibling script (run as python experiments/NAME.py)
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import nao_constraint_worlds as ncw  # noqa: E402
-
-from eaco_jax.gait.steer import Steering  # noqa: E402
-from eaco_jax.gait.worlds import RobustConfig, joint_play_offsets, stream_key  # noqa: E402
-from eaco_jax.problems.gait import make_gait_problem  # noqa: E402
-from eaco_jax.runs.gait import params_vector, read_params_file  # noqa: E402
+from eaco_jax.gait.steer import Steering
+from eaco_jax.gait.worlds import RobustConfig, joint_play_offsets, stream_key
+from eaco_jax.problems.gait import make_gait_problem
+from eaco_jax.runs.gait import params_vector, read_params_file
 
 OUT = "experiments/results/nao_steering_ablation.json"
 QUANTISATION = 2 * math.pi / 4096 / math.sqrt(12)
