@@ -15,11 +15,12 @@ rollouts of both backends, at every control step, from the torso pose at the ste
 
 The joint targets become ``u(t) + c du/d(turn_rate)(t)``: the walk engine's targets at turn
 rate ``turn_rate + c``, to first order (:func:`turn_sensitivity`; the foot yaw is linear in the
-turn rate, the leg IK is not, and the second-order term is far below a joint's quantisation at
-the clamp). A world's latency delays the correction with the command: a world ``L >= 1``
-control steps late uses the correction of the step before (one step of memory, which covers
-the default latency range ``0..1``). With targets interpolated between control steps the next
-step's target carries this step's correction, so the command stays continuous.
+turn rate, the leg IK is not: at the clamp the targets of the stored constrained NAO gait differ
+from the engine's by at most 2e-4 rad, an eighth of one 12-bit encoder count). A world's
+latency delays the correction with the command: a world ``L >= 1`` control steps late uses the
+correction of the step before (one step of memory, which covers the default latency range
+``0..1``). With targets interpolated between control steps the next step's target carries this
+step's correction, so the command stays continuous.
 """
 
 from __future__ import annotations
@@ -107,9 +108,9 @@ def _wrap(a, xp):
 def update(state: SteerState, trace_row, start_xy, direction: float, cfg: Steering,
            dt: float, xp=jnp):
     """One control step of the controller from the torso row ``(B, 7)`` (position, up, yaw)
-    and the start position ``(B, 2)``. Returns the new state and the correction ``(B,)`` [rad/s]
-    this step's command uses (the previous one where the world's latency calls for it: see
-    :func:`delayed`)."""
+    and the start position ``(B, 2)``. Returns the new state (which keeps this correction as the
+    next step's ``c_prev``) and this step's correction ``(B,)`` [rad/s]; a world with latency
+    applies the previous one instead (:func:`delayed`)."""
     ux, uy = math.cos(direction), math.sin(direction)
     dx = trace_row[:, 0] - start_xy[:, 0]
     dy = trace_row[:, 1] - start_xy[:, 1]
