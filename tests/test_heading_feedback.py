@@ -90,6 +90,19 @@ def test_turn_sensitivity_is_the_derivative_of_the_targets():
     assert np.allclose(d, fd, atol=2e-3)
 
 
+def test_first_order_targets_at_the_clamp_stay_within_a_quarter_encoder_count():
+    """What steer.py's docstring promises, on the stored constrained gait."""
+    path = "experiments/results/nao_steer_margin_gpu/best_gait.json"
+    p = make_gait_problem("nao", backend="native", horizon=4.0)
+    x = p.gait_row(params_vector(read_params_file(path), p, path))
+    d = np.asarray(st.turn_sensitivity(p.controls, x, TURN))
+    u0 = np.asarray(p.controls(x))
+    clamp = Steering().max_rate
+    for c in (clamp, -clamp):
+        exact = np.asarray(p.controls(x.at[:, TURN].add(c)))
+        assert np.abs(exact - (u0 + c * d)).max() < 0.25 * 2 * math.pi / 4096
+
+
 def _problem(backend, steering, horizon=4.0, robust=None):
     return make_gait_problem("nao", backend=backend, horizon=horizon, steering=steering,
                              robust=robust)

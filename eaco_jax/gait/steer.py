@@ -15,8 +15,9 @@ rollouts of both backends, at every control step, from the torso pose at the ste
 
 The joint targets become ``u(t) + c du/d(turn_rate)(t)``: the walk engine's targets at turn
 rate ``turn_rate + c``, to first order (:func:`turn_sensitivity`; the foot yaw is linear in the
-turn rate, the leg IK is not: at the clamp the targets of the stored constrained NAO gait differ
-from the engine's by at most 2e-4 rad, an eighth of one 12-bit encoder count). A world's
+turn rate, the leg IK is not; at the clamp the difference from the engine's targets stays
+below a quarter of one 12-bit encoder count, which tests/test_heading_feedback.py checks on the
+stored constrained NAO gait). A world's
 latency delays the correction with the command: a world ``L >= 1`` control steps late uses the
 correction of the step before (one step of memory, which covers the default latency range
 ``0..1``). With targets interpolated between control steps the next step's target carries this
