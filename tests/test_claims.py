@@ -90,12 +90,15 @@ def test_every_colony_default_row_names_a_claim():
 
 
 def test_every_measured_default_names_a_claim():
-    """The construction plan per backend and the kernel's block size cite existing claims."""
+    """The construction plan per backend, the kernel's block size and the heading controller's
+    defaults cite existing claims."""
     from eaco_jax.ops.construction import AUTO_PLANS
     from eaco_jax.ops.construction_kernel import BLOCK_CLAIM
 
     ids = {c.id for c in CLAIMS}
-    cited = [row.claim for row in AUTO_PLANS] + [BLOCK_CLAIM]
+    from eaco_jax.gait.steer import DEFAULTS_CLAIM
+
+    cited = [row.claim for row in AUTO_PLANS] + [BLOCK_CLAIM, DEFAULTS_CLAIM]
     assert AUTO_PLANS and [c for c in cited if c not in ids] == []
 
 

@@ -36,10 +36,15 @@ import numpy as np
 
 from eaco_jax.errors import ProblemError
 
+#: the claim (experiments/claims.toml) behind the defaults of :class:`Steering`: the ablation
+#: that read gain 1 and the heading alone off the selection worlds of an earlier search
+DEFAULTS_CLAIM = "steer-abl-gain1-feasible"
+
 
 @dataclasses.dataclass(frozen=True)
 class Steering:
-    """The heading controller's settings (see the module docstring)."""
+    """The heading controller's settings (see the module docstring; the defaults:
+    :data:`DEFAULTS_CLAIM`)."""
 
     gain: float = 1.0  # rad/s of turn per rad of error
     lookahead: float = math.inf  # m; inf: hold the heading only
