@@ -280,7 +280,7 @@ def mjx_rollout(
         return world_ctrl_at(controls, t, worlds, spec).reshape(nb, nu)
 
     if steer is not None:
-        dctrl = couple_controls(jnp.asarray(steer.dcontrols, jnp.float32), spec)
+        dctrl = jnp.asarray(steer.dcontrols, jnp.float32)  # coupled as SteerInputs says
         lat = (jnp.zeros((nb,), jnp.int32) if worlds is None
                else jnp.take(worlds.latency, world_of))
 

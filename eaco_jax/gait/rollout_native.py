@@ -209,8 +209,8 @@ def native_rollout(
     ``limits`` (default: the spec's, :func:`~eaco_jax.gait.motors.physics_limits`): the motor
     limits in the physics; ``models`` are then position-servo models as without (their servo
     constants give ``motor``'s defaults) and are switched to direct torque here.
-    ``steer`` (:mod:`eaco_jax.gait.steer`, its ``dcontrols`` ``(B, T, nu)`` as delayed and
-    coupled as ``controls``): the heading controller corrects the targets at every control
+    ``steer`` (:mod:`eaco_jax.gait.steer`, its ``dcontrols`` ``(B, T, nu)`` delayed as
+    ``controls``): the heading controller corrects the targets at every control
     step from the torso's pose; ``latency`` ``(B,)``: each rollout's latency (control steps,
     default 0), which delays the correction.
     """
@@ -504,11 +504,11 @@ def native_rollout_callback(
     if steer is not None:
         d = jnp.asarray(steer.dcontrols, jnp.float32)
         if worlds is None:
-            args["dctrl"] = couple_controls(d, spec)
+            args["dctrl"] = d
             args["lat"] = jnp.zeros(lead + (a,), jnp.int32)
         else:
             idx = jnp.maximum(jnp.arange(t)[None, :] - worlds.latency[:, None], 0)  # (R, T)
-            per_w = couple_controls(jnp.take(d, idx, axis=-2), spec)  # (..., A, R, T, nu)
+            per_w = jnp.take(d, idx, axis=-2)  # (..., A, R, T, nu)
             args["dctrl"] = per_w.reshape(lead + (a * r, t, nu))
             args["lat"] = tile(worlds.latency)
     nb = a * r

@@ -79,9 +79,6 @@ def _rollout(problem: Any, controls: jax.Array, worlds, every: int, steer) -> di
                                             trace_every=every, steer=steer))
         return jax.device_get(run(controls))
     if worlds is None:
-        if steer is not None:
-            steer = steer._replace(dcontrols=couple_controls(np.asarray(steer.dcontrols), spec,
-                                                             xp=np))
         return native_rollout(couple_controls(np.asarray(controls), spec, xp=np), spec,
                               problem.slope_deg, problem.accuracy, quality=True,
                               trace_every=every, steer=steer)

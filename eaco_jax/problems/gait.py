@@ -132,12 +132,14 @@ class GaitProblem(Box):
             p, self.n_steps, self.spec, heading, self.slope_deg, self.ik))(solutions)
 
     def steer_inputs(self, solutions: jax.Array) -> SteerInputs | None:
-        """What the rollouts need to steer gaits ``(m, dim)`` (None without ``steering``)."""
+        """What the rollouts need to steer gaits ``(m, dim)`` (None without ``steering``): the
+        targets' sensitivity to the turn rate with the robot's joint coupling applied, as the
+        rollouts apply it to the targets."""
         if self.steering is None:
             return None
-        return SteerInputs(turn_sensitivity(self.controls, solutions,
-                                            PARAM_NAMES.index("turn_rate")),
-                           self.steering, math.radians(self.direction_deg))
+        d = turn_sensitivity(self.controls, solutions, PARAM_NAMES.index("turn_rate"))
+        return SteerInputs(couple_controls(d, self.spec), self.steering,
+                           math.radians(self.direction_deg))
 
     def trace(self, solutions: jax.Array) -> jax.Array:
         """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` in the nominal world."""
@@ -322,9 +324,6 @@ class GaitProblem(Box):
                                                 steer=steer))
             out = jax.tree.map(np.asarray, run(controls))
         else:
-            if steer is not None:
-                steer = steer._replace(dcontrols=np.asarray(
-                    couple_controls(steer.dcontrols, prob.spec)))
             out = native_rollout(np.asarray(controls), prob.spec, prob.slope_deg, prob.accuracy,
                                  quality=quality, record_qpos=True, steer=steer)
         trace, qpos = np.asarray(out["trace"]), np.asarray(out["qpos"])
