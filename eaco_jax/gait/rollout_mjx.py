@@ -45,6 +45,7 @@ from eaco_jax.gait.worlds import (
     Worlds,
     actuated_dofs,
     couple_controls,
+    delayed_at,
     friction_geom_ids,
     initial_qpos,
     model_fields,
@@ -287,8 +288,7 @@ def mjx_rollout(
         def dtargets(t):
             if worlds is None:
                 return dctrl[:, t]
-            idx = jnp.maximum(t - worlds.latency, 0)
-            return jnp.take(dctrl, idx, axis=1).reshape(nb, nu)
+            return delayed_at(dctrl, t, worlds).reshape(nb, nu)
 
     mlim = mo.motor_model(spec) if limits else None
     mp0 = None if mp is None else ql.MotorParams(*(x[:, 0] for x in mp))

@@ -51,6 +51,7 @@ from eaco_jax.gait.worlds import (
     Worlds,
     actuated_dofs,
     couple_controls,
+    delayed_at,
     friction_geom_ids,
     initial_qpos,
     model_fields,
@@ -507,9 +508,8 @@ def native_rollout_callback(
             args["dctrl"] = d
             args["lat"] = jnp.zeros(lead + (a,), jnp.int32)
         else:
-            idx = jnp.maximum(jnp.arange(t)[None, :] - worlds.latency[:, None], 0)  # (R, T)
-            per_w = jnp.take(d, idx, axis=-2)  # (..., A, R, T, nu)
-            args["dctrl"] = per_w.reshape(lead + (a * r, t, nu))
+            per_w = jax.vmap(lambda s: delayed_at(d, s, worlds), out_axes=-2)(steps)
+            args["dctrl"] = per_w.reshape(lead + (a * r, t, nu))  # from (..., A, R, T, nu)
             args["lat"] = tile(worlds.latency)
     nb = a * r
     shapes: dict[str, jax.ShapeDtypeStruct] = {

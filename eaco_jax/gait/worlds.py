@@ -248,12 +248,18 @@ def sample_worlds(key: jax.Array, cfg: RobustConfig, spec, nbody: int, n_steps: 
     )
 
 
+def delayed_at(x: jax.Array, t: jax.Array, worlds: Worlds) -> jax.Array:
+    """What each world receives at control step ``t`` of a per-step command ``x``
+    ``(..., A, T, nu)``: the row its latency delays, ``(..., A, R, nu)`` (the first row while
+    the delay reaches back before the start)."""
+    return jnp.take(x, jnp.maximum(t - worlds.latency, 0), axis=-2)
+
+
 def world_ctrl_at(controls: jax.Array, t: jax.Array, worlds: Worlds, spec) -> jax.Array:
     """Commanded targets ``(A, R, nu)`` at control step ``t`` in each world: the ants' targets
-    ``controls`` ``(A, T, nu)`` delayed by the world's latency, plus its target noise and its
-    joint-play offsets."""
-    idx = jnp.maximum(t - worlds.latency, 0)
-    u = jnp.take(controls, idx, axis=1)  # (A, R, nu)
+    ``controls`` ``(A, T, nu)`` delayed by the world's latency (:func:`delayed_at`), plus its
+    target noise and its joint-play offsets."""
+    u = delayed_at(controls, t, worlds)  # (A, R, nu)
     noise = jax.random.normal(jax.random.fold_in(worlds.noise_key, t), u.shape[1:], jnp.float32)
     return _couple(u + worlds.noise_std * noise + worlds.target_offset, spec)
 
