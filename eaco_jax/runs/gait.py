@@ -427,10 +427,9 @@ def _problem(robot: str, backend: str, horizon: float, direction: float, slope: 
              turn: str | None = None, seed: int = 0, constrained: bool = False,
              ik: str = "auto", steering: Any = None, target_noise: float | None = None,
              margin: float = 0.0) -> Any:
-    from eaco_jax.problems.gait import RobustConfig, make_gait_problem
+    from eaco_jax.problems.gait import make_gait_problem
 
-    noise = {} if target_noise is None else {"target_noise": float(target_noise)}
-    cfg = (RobustConfig(R=int(robust), aggregate=aggregate, seed=int(seed), **noise)
+    cfg = (world_ranges(seed, target_noise, R=int(robust), aggregate=aggregate)
            if robust else None)
     return make_gait_problem(robot, backend=backend, horizon=float(horizon),
                              direction_deg=float(direction), slope_deg=float(slope), impl=impl,
@@ -549,7 +548,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
     if s.finalists:
         best, selection = select_finalists(problem, np.asarray(result.state.archive_x),
                                            int(s.finalists), int(s.select_worlds), int(s.seed),
-                                           trial_config(int(s.seed), s.target_noise))
+                                           world_ranges(int(s.seed), s.target_noise))
     sim = problem.simulate(best, record=True)
     seconds = time.perf_counter() - t0
     history = fitness_history(result.history, problem.constrained)
@@ -592,7 +591,7 @@ def run(s: GaitSettings, *, progress: bool = False, checkpointing: Any = None) -
 
         record["trials"] = evaluate_trials(problem, best, n=int(s.trials), seed=int(s.seed),
                                            stream="test",
-                                           config=problem.robust or trial_config(
+                                           config=problem.robust or world_ranges(
                                                int(s.seed), s.target_noise))
     if s.out is not None:
         from eaco_jax import plots
@@ -629,19 +628,13 @@ def constraints_record(problem: Any, best: np.ndarray, seed: int,
         from eaco_jax.gait.worlds import stream_key
 
         n = int(selection["worlds"])
-        prob = problem.replace(robust=dataclasses.replace(problem.robust or _default_robust(seed),
-                                                          R=n))
+        ranges = problem.robust or world_ranges(seed, None)
+        prob = problem.replace(robust=dataclasses.replace(ranges, R=n))
         rep = prob.report(best, prob.worlds(stream_key(seed, "selection", 0), n))
         return {"stream": "selection", **rep}
     worlds = problem.worlds() if problem.robust is not None else None
     return {"stream": "optimisation" if worlds is not None else "nominal",
             **problem.report(best, worlds)}
-
-
-def _default_robust(seed: int) -> Any:
-    from eaco_jax.gait.worlds import RobustConfig
-
-    return RobustConfig(seed=int(seed))
 
 
 # --------------------------------------------------------------------------- gait-eval
@@ -669,12 +662,13 @@ def build_eval(s: GaitEvalSettings) -> Built:
                                                  "target_noise": noise})
 
 
-def trial_config(seed: int, target_noise: float | None) -> Any:
-    """The trials' world ranges: the defaults with ``target_noise`` if given."""
+def world_ranges(seed: int, target_noise: float | None, **fields: Any) -> Any:
+    """A :class:`~eaco_jax.gait.worlds.RobustConfig` of run seed ``seed`` with ``fields``; the
+    default ranges but ``target_noise`` where given (None: the default noise)."""
     from eaco_jax.gait.worlds import RobustConfig
 
     noise = {} if target_noise is None else {"target_noise": float(target_noise)}
-    return RobustConfig(seed=int(seed), **noise)
+    return RobustConfig(seed=int(seed), **fields, **noise)
 
 
 def run_eval(s: GaitEvalSettings, *, progress: bool = False,
@@ -684,7 +678,7 @@ def run_eval(s: GaitEvalSettings, *, progress: bool = False,
     built = build_eval(s)
     problem, vec = built.problem, built.extra["vector"]
     thermal = thermal_wanted(s.thermal, problem)  # refuses before any simulation
-    cfg = trial_config(built.extra["seed"], built.extra["target_noise"])
+    cfg = world_ranges(built.extra["seed"], built.extra["target_noise"])
     t0 = time.perf_counter()
     sim = problem.simulate(vec, record=s.out is not None)
     record: dict[str, Any] = {

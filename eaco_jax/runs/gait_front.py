@@ -41,6 +41,7 @@ from eaco_jax.runs.gait import (
     check_noise,
     narrowed_around,
     steering_of,
+    world_ranges,
 )
 from eaco_jax.runs.tsp import PARAMS_HELP
 
@@ -96,12 +97,10 @@ class GaitFrontSettings:
 
 
 def build(s: GaitFrontSettings) -> Built:
-    from eaco_jax.gait.worlds import RobustConfig
     from eaco_jax.problems.gait_mo import make_gait_mo_problem
     from eaco_jax.strategies.mo_eaco import MOEACO
 
-    noise = {} if s.target_noise is None else {"target_noise": float(s.target_noise)}
-    robust = RobustConfig(R=int(s.robust), seed=int(s.seed), **noise) if s.robust else None
+    robust = world_ranges(s.seed, s.target_noise, R=int(s.robust)) if s.robust else None
     problem = make_gait_mo_problem(s.robot, s.second, backend=s.backend, impl=s.impl,
                                    horizon=float(s.horizon), robust=robust, ik=s.ik,
                                    steering=steering_of(s.steer))
