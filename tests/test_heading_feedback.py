@@ -82,7 +82,8 @@ def test_settings_are_checked_and_round_trip():
 def test_turn_sensitivity_is_the_derivative_of_the_targets():
     p = make_gait_problem("nao", backend="native", horizon=2.0)
     x = p.gait_row(params_vector(read_params_file(GAIT), p, GAIT))
-    d = np.asarray(st.turn_sensitivity(p.controls, x, TURN))
+    u, d = (np.asarray(a) for a in st.turn_sensitivity(p.controls, x, TURN))
+    assert np.array_equal(u, np.asarray(p.controls(x)))  # the targets from the same pass
     h = 1e-2
     fd = (np.asarray(p.controls(x.at[:, TURN].add(h)))
           - np.asarray(p.controls(x.at[:, TURN].add(-h)))) / (2 * h)
@@ -95,8 +96,7 @@ def test_first_order_targets_at_the_clamp_stay_within_a_quarter_encoder_count():
     path = "experiments/results/nao_steer_margin_gpu/best_gait.json"
     p = make_gait_problem("nao", backend="native", horizon=4.0)
     x = p.gait_row(params_vector(read_params_file(path), p, path))
-    d = np.asarray(st.turn_sensitivity(p.controls, x, TURN))
-    u0 = np.asarray(p.controls(x))
+    u0, d = (np.asarray(a) for a in st.turn_sensitivity(p.controls, x, TURN))
     clamp = Steering().max_rate
     for c in (clamp, -clamp):
         exact = np.asarray(p.controls(x.at[:, TURN].add(c)))

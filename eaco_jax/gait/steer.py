@@ -96,10 +96,12 @@ class SteerState(NamedTuple):
     c_prev: Any
 
 
-def turn_sensitivity(controls_fn, solutions: jax.Array, turn_index: int) -> jax.Array:
-    """``d controls / d turn_rate`` ``(A, T, nu)`` of ``controls_fn(solutions)``, forward mode."""
+def turn_sensitivity(controls_fn, solutions: jax.Array,
+                     turn_index: int) -> tuple[jax.Array, jax.Array]:
+    """``controls_fn(solutions)`` and its derivative with respect to the turn rate, both
+    ``(A, T, nu)``, in one forward-mode pass."""
     tangent = jnp.zeros_like(solutions).at[:, turn_index].set(1.0)
-    return jax.jvp(controls_fn, (solutions,), (tangent,))[1]
+    return jax.jvp(controls_fn, (solutions,), (tangent,))
 
 
 def start_state(nb: int, xp=jnp) -> SteerState:

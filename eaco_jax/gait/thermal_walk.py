@@ -47,12 +47,12 @@ def thermal_walk(problem: Any, params: Any, n: int = 0, seed: int = 0, stream: s
         raise ValueError(f"robot {spec.name} has no electrical motor data: no thermal walk")
     every = max(1, int(round(sample_s / spec.control_dt)))
     x = problem.gait_row(params)
-    controls = problem.controls(x)
+    controls, steer = problem.controls_and_steer(x)
     worlds = None
     if n:
         cfg = config or RobustConfig(seed=int(seed))
         worlds = problem.replace(robust=cfg).worlds(stream_key(int(seed), stream, 0), int(n))
-    out = _rollout(problem, controls, worlds, every, problem.steer_inputs(x))
+    out = _rollout(problem, controls, worlds, every, steer)
     summary = problem.summarize(out["trace"])
     res = gait_fitness(summary, problem.direction_deg, problem.turn)
     model = native_model(spec, float(problem.slope_deg), problem.accuracy)

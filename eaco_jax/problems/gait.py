@@ -131,15 +131,16 @@ class GaitProblem(Box):
         return jax.vmap(lambda p: control_sequence(
             p, self.n_steps, self.spec, heading, self.slope_deg, self.ik))(solutions)
 
-    def steer_inputs(self, solutions: jax.Array) -> SteerInputs | None:
-        """What the rollouts need to steer gaits ``(m, dim)`` (None without ``steering``): the
-        targets' sensitivity to the turn rate with the robot's joint coupling applied, as the
-        rollouts apply it to the targets."""
+    def controls_and_steer(self, solutions: jax.Array) -> tuple[jax.Array, SteerInputs | None]:
+        """:meth:`controls` of gaits ``(m, dim)`` and what the rollouts need to steer them (None
+        without ``steering``): the targets' sensitivity to the turn rate, from the same
+        forward pass, with the robot's joint coupling applied as the rollouts apply it to the
+        targets."""
         if self.steering is None:
-            return None
-        d = turn_sensitivity(self.controls, solutions, PARAM_NAMES.index("turn_rate"))
-        return SteerInputs(couple_controls(d, self.spec), self.steering,
-                           math.radians(self.direction_deg))
+            return self.controls(solutions), None
+        u, d = turn_sensitivity(self.controls, solutions, PARAM_NAMES.index("turn_rate"))
+        return u, SteerInputs(couple_controls(d, self.spec), self.steering,
+                              math.radians(self.direction_deg))
 
     def trace(self, solutions: jax.Array) -> jax.Array:
         """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` in the nominal world."""
@@ -159,8 +160,7 @@ class GaitProblem(Box):
         return sample_worlds(key, cfg, self.spec, nbody, self.n_steps, n)
 
     def _rollout(self, solutions, worlds: Worlds | None, quality: bool) -> dict:
-        controls = self.controls(solutions)
-        steer = self.steer_inputs(solutions)
+        controls, steer = self.controls_and_steer(solutions)
         if self.backend == "mjx":
             return mjx_rollout(controls, self.spec, self.slope_deg, self.accuracy, worlds,
                                quality, impl=self.impl, steer=steer)
@@ -317,7 +317,8 @@ class GaitProblem(Box):
             horizon=float(horizon if horizon is not None else self.horizon))
         quality = True  # the actuator envelope, for every robot
         controls = couple_controls(jax.jit(prob.controls)(x), prob.spec)
-        steer = prob.steer_inputs(x)
+        # one gait: its sensitivity unjitted, as before (steering objects do not cross a jit)
+        steer = prob.controls_and_steer(x)[1]
         if prob.backend == "mjx":
             run = jax.jit(lambda c: mjx_rollout(c, prob.spec, prob.slope_deg, prob.accuracy,
                                                 quality=quality, record=True, impl=prob.impl,
