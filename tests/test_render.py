@@ -123,3 +123,19 @@ def test_warp_notes_dropped_but_real_errors_kept():
             "other line\n")
     assert drop_warp_notes(text) == ("Failed to import warp: CUDA driver version is insufficient\n"
                                      "other line\n")
+
+
+def test_warp_silenced_on_releases_with_log_level():
+    """Warp 1.19 reads ``config.log_level`` (``quiet`` is gone): its greeting and "Module ...
+    load" lines went to stdout inside a gait-eval ``--json`` record. A stand-in module
+    carries the two config layouts (warp-lang has no CPU build here)."""
+    import types
+
+    from eaco_jax.gait.mjx_import import silence_warp
+
+    new = types.SimpleNamespace(LOG_WARNING=30, config=types.SimpleNamespace(log_level=20))
+    silence_warp(new)
+    assert new.config.log_level == 30 and new.config.quiet is True
+    old = types.SimpleNamespace(config=types.SimpleNamespace(quiet=False))
+    silence_warp(old)
+    assert old.config.quiet is True and not hasattr(old.config, "log_level")

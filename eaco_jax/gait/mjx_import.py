@@ -34,9 +34,19 @@ def quiet_mjx() -> ModuleType:
             from mujoco import mjx
     finally:
         sys.stdout.write(drop_warp_notes(buf.getvalue()))
-    if "warp" in sys.modules:  # no per-kernel "Module ... load" lines for our users
-        sys.modules["warp"].config.quiet = True
+    if "warp" in sys.modules:
+        silence_warp(sys.modules["warp"])
     return mjx
+
+
+def silence_warp(warp: ModuleType) -> None:
+    """No greeting and no per-kernel "Module ... load" lines from Warp on stdout, where they
+    would land inside a ``--json`` record: ``config.quiet`` up to Warp 1.9, ``config.log_level``
+    (warnings and errors still shown) from the releases that replaced it."""
+    warp.config.quiet = True
+    level = getattr(warp, "LOG_WARNING", None)
+    if level is not None and hasattr(warp.config, "log_level"):
+        warp.config.log_level = level
 
 
 def warp_usable() -> bool:
@@ -50,7 +60,7 @@ def warp_usable() -> bool:
         with contextlib.redirect_stdout(io.StringIO()):
             import warp
 
-            warp.config.quiet = True  # no per-kernel "Module ... load" lines for our users
+            silence_warp(warp)
             from mujoco.mjx.third_party import mujoco_warp  # noqa: F401
     except Exception:  # noqa: BLE001 - any failure to load means "not usable"
         return False
