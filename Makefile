@@ -15,8 +15,8 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/eaco tsp eil51 --iterations 200 --out out/tsp
-	$(BIN)/eaco gait --robot nao --init experiments/results/nao_steer_margin_gpu/best_gait.json --steer --out out/gait
-	$(BIN)/eaco gait-eval experiments/results/nao_steer_margin_gpu/best_gait.json --horizon 20 --out out/best_gait
+	$(BIN)/eaco gait --robot nao --init experiments/results/nao_constrained_warp/flat_r32/best_gait.json --steer --out out/gait
+	$(BIN)/eaco gait-eval experiments/results/nao_constrained_warp/flat_r32/best_gait.json --horizon 20 --out out/best_gait
 
 test: $(STAMP)
 	$(BIN)/ruff check eaco_jax robots experiments tests docs
