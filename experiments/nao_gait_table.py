@@ -5,7 +5,9 @@ of continuous walking and at steady state against the firmware limit, the peak c
 against the current limit, slip per metre and drift, with the falls. This script walks a gait
 record on native MuJoCo in the nominal world and in ``--worlds`` randomised worlds of
 ``--stream`` (default ``test``: nothing was chosen on them) of the record's seed, with the
-record's steering and target noise (``eaco gait`` stores both), and writes:
+record's steering and target noise (``eaco gait`` stores both), and writes (a turning gait,
+``turn`` in the record, has no drift constraint; ``--seed`` takes another run seed's stream,
+e.g. a selection stream no search used, to compare gaits):
 
 * ``nominal``: every constraint's value in the nominal world;
 * ``worlds``: per constraint the worst, 99th and 95th percentile and median world and the

@@ -239,3 +239,24 @@ def test_search_margin_acts_in_evaluate_not_in_report():
         make_gait_problem("nao", backend="native", margin=0.1)
     with pytest.raises(ProblemError, match="margin"):
         make_gait_problem("nao", backend="native", constrained=True, margin=1.5)
+
+
+def test_gait_table_of_a_turning_gait(tmp_path):
+    """experiments/nao_gait_table.py on a stored turning gait: no drift constraint (turning is
+    its objective), the turn rate reported, and ``--seed`` draws another run seed's stream."""
+    import os
+    import subprocess
+    import sys
+
+    gait = Path("experiments/results/nao_constrained_warp/turn_left/best_gait.json")
+    out = tmp_path / "table.json"
+    cmd = [sys.executable, "experiments/nao_gait_table.py", str(gait), "--worlds", "2",
+           "--stream", "selection", "--seed", "100", "--out", str(out)]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "JAX_PLATFORMS": "cpu"})
+    assert run.returncode == 0, run.stderr[-2000:]
+    rec = json.loads(out.read_text())
+    assert rec["turn"] == "left" and rec["seed"] == 100 and rec["stream"] == "selection"
+    assert set(rec["constraints"]) == {"endurance", "current", "slip"}
+    assert "drift" not in rec["walking_worlds_worst"]
+    assert rec["turn_deg_s_mean"] > 1.0  # it turns left, as searched

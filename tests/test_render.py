@@ -128,7 +128,7 @@ def test_warp_notes_dropped_but_real_errors_kept():
 def test_warp_silenced_on_releases_with_log_level():
     """Warp 1.19 reads ``config.log_level`` (``quiet`` is gone): its greeting and "Module ...
     load" lines went to stdout inside a gait-eval ``--json`` record. A stand-in module
-    carries the two config layouts (warp-lang has no CPU build here)."""
+    carries the two config layouts (CI has no warp-lang)."""
     import types
 
     from eaco_jax.gait.mjx_import import silence_warp

@@ -41,8 +41,8 @@ def quiet_mjx() -> ModuleType:
 
 def silence_warp(warp: ModuleType) -> None:
     """No greeting and no per-kernel "Module ... load" lines from Warp on stdout, where they
-    would land inside a ``--json`` record: ``config.quiet`` up to Warp 1.9, ``config.log_level``
-    (warnings and errors still shown) from the releases that replaced it."""
+    would land inside a ``--json`` record: older releases read ``config.quiet``, newer ones
+    (1.19 here) ``config.log_level``, which keeps warnings and errors."""
     warp.config.quiet = True
     level = getattr(warp, "LOG_WARNING", None)
     if level is not None and hasattr(warp.config, "log_level"):
