@@ -51,9 +51,11 @@ import numpy as np
 from mo_benchmark import parse_seeds, summarise
 
 import eaco_jax as ea
+from eaco_jax.gait.steer import Steering
 from eaco_jax.gait.worlds import RobustConfig, stream_key
 from eaco_jax.ops import pareto
 from eaco_jax.problems.gait_mo import make_gait_mo_problem
+from eaco_jax.runs.gait import narrowed_around
 from eaco_jax.strategies import MOEACO
 
 RESULTS = Path(__file__).resolve().parent / "results" / "gait_fronts"
@@ -87,12 +89,13 @@ def run_colony(problem, seeds: list[int], ants: int, generations: int) -> tuple[
                          seed=seeds, iterations=generations)
     finals = []
     for i in range(len(seeds)):
-        s = jax.tree.map(lambda a, i=i: a[i], result.state)
+        s = (result.state if len(seeds) == 1  # one seed: minimize returns it unbatched
+             else jax.tree.map(lambda a, i=i: a[i], result.state))
         finals.append({"x": np.asarray(s.archive_x), "f": np.asarray(s.archive_f, np.float64),
                        "violation": np.asarray(s.archive_v, np.float64)})
     timing = {"compile_s": result.compile_seconds,
               "run_s_all_seeds": result.seconds - result.compile_seconds,
-              "evaluations": [int(e) for e in np.asarray(result.evaluations)],
+              "evaluations": [int(e) for e in np.atleast_1d(np.asarray(result.evaluations))],
               "history_hypervolume": np.asarray(result.history["hypervolume"]).tolist(),
               "history_feasible": np.asarray(result.history["feasible"]).tolist()}
     return finals, timing
@@ -219,6 +222,13 @@ def main(argv: list[str] | None = None) -> Path:
     ap.add_argument("--ants", type=int, default=128, help="ants = archive = NSGA-II population")
     ap.add_argument("--generations", type=int, default=20)
     ap.add_argument("--seeds", default="0-9", help="run seeds (both arms, paired)")
+    ap.add_argument("--init", type=Path, default=None,
+                    help="both arms search +/-15%% of each range around this stored gait "
+                         "(eaco gait --init's box)")
+    ap.add_argument("--steer", action="store_true",
+                    help="close the heading loop (eaco_jax.gait.steer defaults), as gait --steer")
+    ap.add_argument("--target-noise", type=float, default=None,
+                    help="joint-target noise std of the worlds, rad (default: RobustConfig's)")
     ap.add_argument("--smoke", action="store_true",
                     help="label the record a smoke run (a harness check, no claims)")
     ap.add_argument("--out", type=Path, default=None, help="default results/gait_fronts/<tag>")
@@ -227,11 +237,16 @@ def main(argv: list[str] | None = None) -> Path:
 
     seeds = parse_seeds(args.seeds)
     score_n = args.score_worlds or args.worlds
+    noise = {} if args.target_noise is None else {"target_noise": float(args.target_noise)}
     robust = RobustConfig(R=args.worlds, seed=args.worlds_seed,
-                          resample=not args.fixed_worlds)
+                          resample=not args.fixed_worlds, **noise)
     problem = make_gait_mo_problem("nao", args.second, backend=args.backend, impl=args.impl,
-                                   horizon=args.horizon, robust=robust)
-    tag = (f"{'smoke_' if args.smoke else ''}{args.second}_{problem.backend}_"
+                                   horizon=args.horizon, robust=robust,
+                                   steering=Steering() if args.steer else None)
+    if args.init is not None:  # the same narrowed box for both arms
+        problem, _ = narrowed_around(problem, args.init)
+    tag = (f"{'smoke_' if args.smoke else ''}{args.second}_{'steer_' if args.steer else ''}"
+           f"{problem.backend}_"
            f"{args.horizon:g}s_{args.ants}x{args.worlds}_g{args.generations}")
     out = args.out or RESULTS / f"{tag}.json"
     ref = np.asarray(problem.ref_point, np.float64)
@@ -297,7 +312,10 @@ def main(argv: list[str] | None = None) -> Path:
                  "constraints": list(problem.constraint_names),
                  "ref_point": ref.tolist(), "backend": problem.backend, "impl": problem.impl,
                  "horizon_s": args.horizon, "worlds": args.worlds,
-                 "aggregate": robust.aggregate, "resample": robust.resample},
+                 "aggregate": robust.aggregate, "resample": robust.resample,
+                 "target_noise": robust.target_noise,
+                 "init": None if args.init is None else str(args.init),
+                 "steering": None if problem.steering is None else problem.steering.record()},
         budget={"ants": args.ants, "generations": args.generations,
                 "evaluations_per_seed": args.ants * args.generations,
                 "rollouts_per_seed": args.ants * args.generations * args.worlds},
