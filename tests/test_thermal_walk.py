@@ -108,3 +108,32 @@ def test_thermal_needs_electrical_motor_data():
                          horizon=1.0, backend="native")
     with pytest.raises(ProblemError, match="drop --thermal"):
         run_eval(s)
+
+
+def test_walking_worlds_leave_the_fallen_out(walk):
+    """The record's worst slip, drift and heat over every world include a fallen robot's slide;
+    ``walking_worlds`` and the summary line give them over the worlds that walked."""
+    from eaco_jax.gait import motors as mo
+    from eaco_jax.gait.thermal_walk import _record
+    from eaco_jax.runs.gait import thermal_line
+
+    p, _ = walk
+    nu = len(p.spec.joint_names)
+    heat = np.stack([np.full(nu, 40.0), np.full(nu, 90.0)])
+    heat[0, 3] = 50.0
+    q = {"foot_slip_m": np.array([0.05, 5.0]), "winding_trace_c": heat[:, None, :],
+         "housing_trace_c": heat[:, None, :] - 5.0, "limit_step": -np.ones((2, nu), int),
+         "winding_end_c": heat, "housing_end_c": heat - 5.0, "copper_loss_w": np.ones((2, nu)),
+         "peak_current_frac": np.full((2, nu), 0.5)}
+    res = {"fell": np.array([False, True]), "distance_m": np.array([2.0, 0.5]),
+           "speed_mps": np.array([0.1, 0.02]), "drift_deg": np.array([3.0, 60.0])}
+    rec = _record(p, q, res, 2, 1, "test", 0, mo.motor_model(p.spec))
+    assert rec["slip_per_m_max"] == pytest.approx(10.0) and rec["drift_deg_max"] == 60.0
+    w = rec["walking_worlds"]
+    assert w["worlds"] == 1 and w["slip_per_m_max"] == pytest.approx(0.025)
+    assert w["drift_deg_max"] == 3.0 and w["winding_end_c_max"] == 50.0
+    assert w["hottest_joint"] == p.spec.joint_names[3]
+    assert "over the 1 walking worlds slip 0.025 m/m, drift 3.0 deg" in thermal_line(rec)
+    res["fell"] = np.array([False, False])
+    assert _record(p, q, res, 2, 1, "test", 0, mo.motor_model(p.spec))["walking_worlds"][
+        "worlds"] == 2

@@ -12,7 +12,8 @@ temperature at the end and its trace, the steady state of this walk repeated (th
 copper loss times the winding-ambient thermal resistance), the peak current
 against the current limit and when (and in how many worlds) the firmware limit was reached;
 per gait, the falls with the Clopper-Pearson 95 % interval, speed, foot slip per metre and
-drift.
+drift over every world, and (``walking_worlds``) slip, drift and the hottest winding over the
+worlds that did not fall.
 """
 
 from __future__ import annotations
@@ -128,6 +129,12 @@ def _record(problem, q: dict, res: dict, r: int, every: int, stream: str, seed: 
             "worlds_reaching_limit": int(reached.sum()),
         }
     first = [v["limit_reached_s"] for v in joints.values() if v["limit_reached_s"] is not None]
+    walk = ~fell  # a fallen robot's slip, drift and heat say nothing about the gait
+    walking = None if not walk.any() else {
+        "worlds": int(walk.sum()), "slip_per_m_max": float(slip[walk].max()),
+        "drift_deg_max": float(drift[walk].max()),
+        "winding_end_c_max": float(end_w[walk].max()),
+        "hottest_joint": names[int(end_w[walk].max(axis=0).argmax())]}
     t = (np.arange(wind.shape[1]) + 1) * every * dt
     return {
         "horizon_s": float(problem.horizon), "stream": stream, "seed": int(seed),
@@ -139,6 +146,7 @@ def _record(problem, q: dict, res: dict, r: int, every: int, stream: str, seed: 
         "speed_mps_mean": float(speed.mean()),
         "slip_per_m_max": float(slip.max()), "drift_deg_max": float(drift.max()),
         "peak_current_max_frac": float(peak_i.max()),
+        "walking_worlds": walking,
         "joints": joints,
         "trace": {"t_s": [round(float(v), 6) for v in t],
                   "winding_c": {n: [round(float(v), 3) for v in wind[:, :, j].max(0)]

@@ -788,8 +788,17 @@ def thermal_line(rec: dict[str, Any]) -> str:
     return (f"thermal ({rec['worlds']} {rec['stream']} world{'s' if rec['worlds'] != 1 else ''}"
             f", {rec['horizon_s']:g} s): {limit}{worst}; {rec['falls']} falls (95% CI "
             f"{100 * lo:.2g}-{100 * hi:.2g}%), {rec['speed_mps_mean']:.3f} m/s, peak current "
-            f"{rec['peak_current_max_frac']:.2f} x limit, slip {rec['slip_per_m_max']:.3f} m/m, "
-            f"drift {rec['drift_deg_max']:.1f} deg")
+            f"{rec['peak_current_max_frac']:.2f} x limit, {_walking_worst(rec)}")
+
+
+def _walking_worst(rec: dict[str, Any]) -> str:
+    """Worst slip and drift of a thermal record, over the worlds that did not fall where some
+    fell (a fallen robot's slide says nothing about the gait)."""
+    w = rec.get("walking_worlds")
+    if w is None or w["worlds"] == rec["worlds"]:
+        return f"slip {rec['slip_per_m_max']:.3f} m/m, drift {rec['drift_deg_max']:.1f} deg"
+    return (f"over the {w['worlds']} walking worlds slip {w['slip_per_m_max']:.3f} m/m, drift "
+            f"{w['drift_deg_max']:.1f} deg")
 
 
 def trials_line(trials: dict[str, Any]) -> str:
