@@ -51,11 +51,10 @@ import numpy as np
 from mo_benchmark import parse_seeds, summarise
 
 import eaco_jax as ea
-from eaco_jax.gait.steer import Steering
-from eaco_jax.gait.worlds import RobustConfig, stream_key
+from eaco_jax.gait.worlds import stream_key
 from eaco_jax.ops import pareto
 from eaco_jax.problems.gait_mo import make_gait_mo_problem
-from eaco_jax.runs.gait import narrowed_around
+from eaco_jax.runs.gait import narrowed_around, steering_of, world_ranges
 from eaco_jax.strategies import MOEACO
 
 RESULTS = Path(__file__).resolve().parent / "results" / "gait_fronts"
@@ -228,7 +227,7 @@ def main(argv: list[str] | None = None) -> Path:
     ap.add_argument("--steer", action="store_true",
                     help="close the heading loop (eaco_jax.gait.steer defaults), as gait --steer")
     ap.add_argument("--target-noise", type=float, default=None,
-                    help="joint-target noise std of the worlds, rad (default: RobustConfig's)")
+                    help="joint-target noise std of the worlds, rad (default: the ranges')")
     ap.add_argument("--smoke", action="store_true",
                     help="label the record a smoke run (a harness check, no claims)")
     ap.add_argument("--out", type=Path, default=None, help="default results/gait_fronts/<tag>")
@@ -237,12 +236,11 @@ def main(argv: list[str] | None = None) -> Path:
 
     seeds = parse_seeds(args.seeds)
     score_n = args.score_worlds or args.worlds
-    noise = {} if args.target_noise is None else {"target_noise": float(args.target_noise)}
-    robust = RobustConfig(R=args.worlds, seed=args.worlds_seed,
-                          resample=not args.fixed_worlds, **noise)
+    robust = world_ranges(args.worlds_seed, args.target_noise, R=args.worlds,
+                          resample=not args.fixed_worlds)
     problem = make_gait_mo_problem("nao", args.second, backend=args.backend, impl=args.impl,
                                    horizon=args.horizon, robust=robust,
-                                   steering=Steering() if args.steer else None)
+                                   steering=steering_of(args.steer))
     if args.init is not None:  # the same narrowed box for both arms
         problem, _ = narrowed_around(problem, args.init)
     tag = (f"{'smoke_' if args.smoke else ''}{args.second}_{'steer_' if args.steer else ''}"

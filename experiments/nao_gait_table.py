@@ -45,9 +45,9 @@ from eaco_jax.gait import quality as ql
 from eaco_jax.gait.fitness import gait_fitness
 from eaco_jax.gait.stats import fall_rate
 from eaco_jax.gait.thermal_walk import LEG_ROLES
-from eaco_jax.gait.worlds import RobustConfig, stream_key
+from eaco_jax.gait.worlds import stream_key
 from eaco_jax.problems.gait import make_gait_problem
-from eaco_jax.runs.gait import params_vector, read_params_file, steering_of
+from eaco_jax.runs.gait import params_vector, read_params_file, steering_of, world_ranges
 
 
 def per_world(p, x, worlds) -> dict[str, np.ndarray]:
@@ -101,8 +101,7 @@ def main() -> None:
     data = read_params_file(a.gait)
     seed = int(data.get("seed") or 0) if a.seed is None else int(a.seed)
     noise = (data.get("robust") or {}).get("target_noise")
-    cfg = RobustConfig(R=a.worlds, seed=seed,
-                       **({} if noise is None else {"target_noise": float(noise)}))
+    cfg = world_ranges(seed, noise, R=a.worlds)
     p = make_gait_problem(str(data.get("robot", "nao")), backend="native",
                           horizon=float(data.get("horizon") or 20.0),
                           direction_deg=float(data.get("direction") or 0.0),

@@ -92,7 +92,7 @@ def test_turn_sensitivity_is_the_derivative_of_the_targets():
 
 
 def test_first_order_targets_at_the_clamp_stay_within_a_quarter_encoder_count():
-    """What steer.py's docstring promises, on the stored constrained gait."""
+    """What steer.py's docstring promises, on the margin-searched constrained gait."""
     path = "experiments/results/nao_steer_margin_gpu/best_gait.json"
     p = make_gait_problem("nao", backend="native", horizon=4.0)
     x = p.gait_row(params_vector(read_params_file(path), p, path))

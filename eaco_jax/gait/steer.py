@@ -17,7 +17,7 @@ The joint targets become ``u(t) + c du/d(turn_rate)(t)``: the walk engine's targ
 rate ``turn_rate + c``, to first order (:func:`turn_sensitivity`; the foot yaw is linear in the
 turn rate, the leg IK is not; at the clamp the difference from the engine's targets stays
 below a quarter of one 12-bit encoder count, which tests/test_heading_feedback.py checks on the
-stored constrained NAO gait). A world's
+margin-searched constrained NAO gait). A world's
 latency delays the correction with the command: a world ``L >= 1`` control steps late uses the
 correction of the step before (one step of memory, which covers the default latency range
 ``0..1``). With targets interpolated between control steps the next step's target carries this
