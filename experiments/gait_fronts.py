@@ -5,9 +5,11 @@ the current, slip, drift and fall constraints
 (:func:`eaco_jax.problems.gait_mo.make_gait_mo_problem`), at equal evaluations: ``--ants``
 ants (= archive = NSGA-II population) x ``--generations``. Both arms evaluate through the same
 batched function, ``problem.evaluate(X, key)`` (ants x R worlds in one rollout): the colony
-inside its compiled program (``ea.minimize``, all seeds vmapped), NSGA-II through a pymoo
-``Problem`` whose ``_evaluate`` calls the jitted evaluation once per generation (offspring
-padded to the population size, so one compiled shape serves every call). Both see the
+inside its compiled program (``ea.minimize``, all seeds vmapped), NSGA-II through pymoo's
+ask-and-tell API with every seed's generation evaluated as one call (the evaluation vmapped
+over the seeds, offspring padded to the population size, so one compiled shape serves every
+call). On MuJoCo Warp both vmaps size its shared contact buffer for all the seeds
+(``GaitProblem.for_rows``). Both see the
 optimisation stream of ``--worlds-seed``: the colony's per-iteration key picks each batch
 (``optimisation_key``), NSGA-II's key of generation ``t`` is ``fold_in(PRNGKey(seed), t)``;
 ``--fixed-worlds`` keeps batch 0 for both.
@@ -101,30 +103,20 @@ def run_colony(problem, seeds: list[int], ants: int, generations: int) -> tuple[
 
 
 def run_nsga2(problem, seeds: list[int], ants: int, generations: int) -> tuple[list, dict]:
-    """pymoo's NSGA-II, one seed after another, evaluating through the jitted batched gait
-    evaluation with a fresh optimisation-stream key each generation."""
+    """pymoo's NSGA-II through its ask-and-tell API, all seeds in lockstep: each generation's
+    populations of every seed are evaluated as one call, the jitted evaluation vmapped over the
+    seeds with each seed's own optimisation-stream key (fresh each generation), as the
+    colony's vmapped seeds are; so both arms pay the same batched physics."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.problem import Problem
-    from pymoo.optimize import minimize
+    from pymoo.problems.static import StaticProblem
 
     keyed = problem.stochastic
-    evaluate = jax.jit(problem.evaluate)
-    state = {"calls": 0, "key": jax.random.PRNGKey(0)}
-
-    def batched(x: np.ndarray):
-        n = len(x)
-        pad = np.concatenate([x, np.repeat(x[:1], (-n) % ants, axis=0)]) if n % ants else x
-        fs, vs = [], []
-        for chunk in np.split(pad, len(pad) // ants):
-            xs = jnp.asarray(chunk, problem.dtype)
-            if keyed:
-                e = evaluate(xs, jax.random.fold_in(state["key"], state["calls"]))
-            else:
-                e = evaluate(xs)
-            state["calls"] += 1
-            fs.append(np.asarray(e.f, np.float64))
-            vs.append(np.asarray(e.violation, np.float64))
-        return np.concatenate(fs)[:n], np.concatenate(vs)[:n]
+    prob = problem.for_rows(len(seeds)) if hasattr(problem, "for_rows") else problem
+    if keyed:
+        evaluate = jax.jit(jax.vmap(prob.evaluate))
+    else:
+        evaluate = jax.jit(jax.vmap(lambda x, _k: prob.evaluate(x)))
 
     class GaitMO(Problem):
         def __init__(self) -> None:
@@ -132,28 +124,54 @@ def run_nsga2(problem, seeds: list[int], ants: int, generations: int) -> tuple[l
                              xl=np.asarray(problem.lower, np.float64),
                              xu=np.asarray(problem.upper, np.float64))
 
-        def _evaluate(self, x, out, *args, **kwargs) -> None:
-            out["F"], v = batched(x)
-            out["G"] = v[:, None]
-
-    t0 = time.perf_counter()
-    zeros = jnp.zeros((ants, problem.dim), problem.dtype)
-    jax.block_until_ready(evaluate(zeros, jax.random.PRNGKey(0)) if keyed else evaluate(zeros))
-    compile_s = time.perf_counter() - t0
-    finals, seconds, counts, calls = [], [], [], []
+    mo = GaitMO()
+    mid = (np.asarray(problem.lower, np.float64) + np.asarray(problem.upper, np.float64)) / 2
+    algos = []
     for s in seeds:
-        state.update(calls=0, key=jax.random.PRNGKey(s))
-        t0 = time.perf_counter()
-        res = minimize(GaitMO(), NSGA2(pop_size=ants), ("n_eval", ants * generations),
-                       seed=s, verbose=False)
-        seconds.append(time.perf_counter() - t0)
-        counts.append(int(res.algorithm.evaluator.n_eval))
-        calls.append(state["calls"])
-        pop = res.pop
+        algo = NSGA2(pop_size=ants)
+        algo.setup(mo, termination=("n_eval", ants * generations), seed=s, verbose=False)
+        algos.append(algo)
+    calls = [0] * len(seeds)
+    t0 = time.perf_counter()
+    warm = jnp.broadcast_to(jnp.asarray(mid, problem.dtype), (len(seeds), ants, problem.dim))
+    jax.block_until_ready(evaluate(warm, jax.vmap(jax.random.PRNGKey)(jnp.asarray(seeds))))
+    compile_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    while any(a.has_next() for a in algos):
+        live = [i for i, a in enumerate(algos) if a.has_next()]
+        pops = {i: algos[i].ask() for i in live}
+        xs = {i: np.asarray(pops[i].get("X"), np.float64) for i in live}
+        rounds = max(-(-len(x) // ants) for x in xs.values())
+        fs = {i: [] for i in live}
+        vs = {i: [] for i in live}
+        for r in range(rounds):  # each round: every live seed's next (padded) chunk of ants
+            batch, keys = [], []
+            for i, s in enumerate(seeds):
+                x = xs.get(i, mid[None])[r * ants:(r + 1) * ants]  # done seeds: the mid-box
+                x = x if len(x) else mid[None]
+                batch.append(np.concatenate([x, np.repeat(x[:1], ants - len(x), axis=0)]))
+                keys.append(jax.random.fold_in(jax.random.PRNGKey(s), calls[i]))
+                calls[i] += i in xs
+            e = evaluate(jnp.asarray(np.stack(batch), problem.dtype), jnp.stack(keys))
+            f, v = np.asarray(e.f, np.float64), np.asarray(e.violation, np.float64)
+            for i in live:
+                n = min(ants, len(xs[i]) - r * ants)
+                if n > 0:
+                    fs[i].append(f[i, :n])
+                    vs[i].append(v[i, :n])
+        for i in live:
+            static = StaticProblem(mo, F=np.concatenate(fs[i]), G=np.concatenate(vs[i])[:, None])
+            algos[i].evaluator.eval(static, pops[i])  # counts toward its n_eval
+            algos[i].tell(infills=pops[i])
+    seconds = time.perf_counter() - t0
+    finals, counts = [], []
+    for algo in algos:
+        pop = algo.result().pop
+        counts.append(int(algo.evaluator.n_eval))
         finals.append({"x": np.asarray(pop.get("X"), np.float32),
                        "f": np.asarray(pop.get("F"), np.float64),
                        "violation": np.maximum(np.asarray(pop.get("G"), np.float64)[:, 0], 0)})
-    return finals, {"compile_s": compile_s, "run_s_per_seed": seconds, "evaluations": counts,
+    return finals, {"compile_s": compile_s, "run_s_all_seeds": seconds, "evaluations": counts,
                     "batched_calls": calls}
 
 

@@ -177,3 +177,29 @@ def test_kept_programs_make_room_when_the_process_nears_its_map_limit(monkeypatc
     ea.minimize(tsp, GraphEACO(num_ants=9), seed=0, iterations=1)
     assert ants_kept(programs._COMPILED) == [6, 7, 8, 9]
     programs.clear_compiled()
+
+
+@struct.dataclass
+class RowSizedSphere(Sphere):
+    """A problem whose evaluation holds a buffer per call (as MuJoCo Warp's contacts): the
+    driver tells it how many vmapped rows share it; here the count offsets the cost, so the
+    result shows whether the driver did."""
+
+    rows: int = struct.field(pytree_node=False, default=1)
+
+    def for_rows(self, rows):
+        return self.replace(rows=rows)
+
+    def evaluate(self, x):
+        return Evaluation(f=jnp.sum(x**2, axis=-1) + self.rows,
+                          violation=jnp.zeros(x.shape[0]))
+
+
+def test_vmapped_rows_are_announced_to_the_problem():
+    """``minimize`` over seeds x settings hands the problem ``for_rows(rows)`` before it
+    compiles (the MuJoCo Warp gait problem sizes its shared contact buffer by it)."""
+    p = RowSizedSphere(lower=-jnp.ones(3), upper=jnp.ones(3))
+    one = ea.minimize(p, RandomSearch(), seed=1, iterations=3)
+    three = ea.minimize(p, RandomSearch(), seed=[1, 2, 3], iterations=3)
+    assert 1 <= float(one.best_cost) < 1 + 3
+    assert np.all(np.asarray(three.best_cost) >= 3)

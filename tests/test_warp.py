@@ -81,3 +81,19 @@ def test_overflow_is_reported(capfd, monkeypatch):
     x = jnp.broadcast_to((p.lower + p.upper) / 2, (8, p.dim))
     jax.block_until_ready(rollout_mjx.mjx_rollout(p.controls(x), p.spec, impl="warp")["trace"])
     assert "MuJoCo Warp buffers overflowed" in capfd.readouterr().err
+
+
+def test_buffers_hold_every_vmapped_copy():
+    """An outer vmap (seeds of one ``minimize``) is flattened by MuJoCo Warp into one batch
+    sharing one contact buffer: it holds copies x worlds x the per-world bound; constraint
+    rows stay per world. The gait problem asks for it only on Warp."""
+    from eaco_jax.gait.rollout_mjx import warp_buffers
+
+    model = native_model(load_robot("nao"), 0.0, "fast")
+    contacts, rows = contact_capacity(model)
+    assert warp_buffers(model, 512) == (contacts * 512, rows)
+    assert warp_buffers(model, 512, copies=10) == (contacts * 5120, rows)
+    p = make_gait_problem("nao", backend="mjx", horizon=0.1, impl="jax")
+    assert p.for_rows(10) is p
+    w = p.replace(impl="warp")
+    assert w.for_rows(10).copies == 10 and w.for_rows(1).copies == 1

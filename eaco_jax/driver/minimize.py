@@ -197,6 +197,8 @@ def minimize(
         chunk = default_chunk(total, chunk_size)
         n_settings = len(params) if isinstance(params, list | tuple) else 1
         rows = len(seeds) * n_settings
+        if rows > 1 and hasattr(problem, "for_rows"):  # buffers shared by the vmapped rows
+            problem = problem.for_rows(rows)
         rules = stop_rules(target, patience, max_seconds, callback, stop, deadline)
         if params is None:
             params = strategy.default_params(problem)

@@ -155,6 +155,15 @@ def _warp_overflow(nacon, nefc, naconmax: int, njmax: int) -> None:
               "eaco_jax.gait.rollout_mjx.CAPACITY_MARGIN", file=sys.stderr)
 
 
+def warp_buffers(model, worlds: int, copies: int = 1) -> tuple[int, int]:
+    """MuJoCo Warp's ``(naconmax, njmax)`` for one call of ``worlds`` worlds run ``copies``
+    times under an outer vmap: the contact buffer is one for the whole flattened batch
+    (every world of every copy), the constraint rows are per world."""
+    per_world, rows = contact_capacity(model)
+    return (int(CAPACITY_MARGIN * per_world * worlds * max(1, int(copies))),
+            int(CAPACITY_MARGIN * rows))
+
+
 #: Warp buffers are sized at this multiple of :func:`contact_capacity` (an exact upper bound,
 #: so 1; raised only to compare, e.g. in experiments/warp_gait.py ``--capacity-scale``)
 CAPACITY_MARGIN = 1.0
@@ -189,6 +198,7 @@ def mjx_rollout(
     trace_every: int = 0,
     interpolate: bool | None = None,
     steer: st.SteerInputs | None = None,
+    copies: int = 1,
 ) -> dict[str, jax.Array]:
     """Roll out the ants' targets ``controls`` ``(A, T, nu)`` on MJX (in R worlds if given).
 
@@ -203,6 +213,8 @@ def mjx_rollout(
     every control step from the torso's pose.
     ``impl="warp"`` runs MuJoCo Warp (CUDA) with contact and constraint buffers sized from the
     model and the batch (:func:`contact_capacity`); an overflow is reported on stderr.
+    ``copies``: how many vmapped copies of this rollout an outer ``jax.vmap`` runs (MuJoCo
+    Warp flattens them into one batch sharing one contact buffer, so it holds them all).
     Traceable: call it inside jit / scan.
     """
     if impl not in IMPLS:
@@ -225,9 +237,7 @@ def mjx_rollout(
     dofs = np.asarray(actuated_dofs(model, spec))
     warp = impl == "warp"
     if warp:
-        per_world, rows = contact_capacity(model)
-        naconmax = int(CAPACITY_MARGIN * per_world * nb)
-        njmax = int(CAPACITY_MARGIN * rows)
+        naconmax, njmax = warp_buffers(model, nb, copies)
         dw = mjx.make_data(model, impl="warp", naconmax=naconmax, njmax=njmax)  # buffers only
     if worlds is None and warp:
         step = jax.vmap(lambda d: mjx.step(mm, d))

@@ -102,9 +102,21 @@ class GaitProblem(Box):
     ik: str = struct.field(pytree_node=False, default="auto")
     #: the heading controller of :mod:`eaco_jax.gait.steer` (None: open loop)
     steering: Steering | None = struct.field(pytree_node=False, default=None)
+    #: vmapped copies of each evaluation run as one MuJoCo Warp batch (seeds x settings of
+    #: one ``minimize`` call): its contact buffer is shared by them all (:meth:`for_rows`)
+    copies: int = struct.field(pytree_node=False, default=1)
 
     kind: ClassVar[str] = "continuous"
     differentiable = False  # a simulation: no gradient repair / refinement steps
+
+    def for_rows(self, rows: int) -> GaitProblem:
+        """This problem for ``rows`` vmapped copies of its evaluation (the driver's seeds x
+        settings). MuJoCo Warp flattens an outer vmap into its one batch of worlds, whose
+        contact buffer is sized per call; a buffer sized for one copy would drop the others'
+        contacts. The JAX and native backends hold no such buffer: unchanged."""
+        if self.backend != "mjx" or self.impl != "warp" or rows == self.copies:
+            return self
+        return self.replace(copies=int(rows))
 
     def shown_best(self, cost: float) -> float:
         """The best cost as the user reads it (the progress bar): the fitness, ``-cost``
@@ -163,7 +175,7 @@ class GaitProblem(Box):
         controls, steer = self.controls_and_steer(solutions)
         if self.backend == "mjx":
             return mjx_rollout(controls, self.spec, self.slope_deg, self.accuracy, worlds,
-                               quality, impl=self.impl, steer=steer)
+                               quality, impl=self.impl, steer=steer, copies=self.copies)
         return native_rollout_callback(controls, self.spec, self.slope_deg, self.accuracy,
                                        worlds, quality, steer=steer)
 
