@@ -128,3 +128,42 @@ def test_fronts_harness_scores_feasible_points_only(monkeypatch):
     np.testing.assert_array_equal(gf.nondominated(f, v), f[[0, 2]])
     assert gf._front_rows(f, v).tolist() == [0, 2]
     np.testing.assert_allclose(gf.natural(f[:1], "endurance"), [[0.3, 5.0]])
+
+
+def test_front_candidates_keep_the_threshold_and_pick_by_the_fixed_rule(monkeypatch, tmp_path):
+    """experiments/front_candidates.py: ``write`` keeps the front points at or past both
+    thresholds, as gait records on the given seed; ``pick`` ranks by worlds failing any
+    constraint, then falls, then speed, and refuses a table of another stream."""
+    import json
+
+    monkeypatch.syspath_prepend(str(ROOT / "experiments"))
+    import front_candidates as fc
+
+    x = [[0.1] * 14, [0.2] * 14, [0.3] * 14]
+    seed_row = {"seed": 0, "rescored_front": [[-0.36, -10.5], [-0.34, -20.0], [-0.40, -9.0]],
+                "rescored_front_x": x}
+    fronts = {"problem": {"second": "endurance", "init": str(tmp_path / "none.json"),
+                          "backend": "mjx", "horizon_s": 20.0, "steering": None,
+                          "target_noise": 0.0004},
+              "seeds": {"scoring": "selection"},
+              "arms": {"colony": {"seeds": [seed_row]}, "nsga2": {"seeds": []}}}
+    (tmp_path / "f.json").write_text(json.dumps(fronts))
+    rows = fc.write(tmp_path / "f.json", 0.35, 10.0, 27, tmp_path / "c")
+    assert [(r["speed"], r["endurance_min"]) for r in rows] == [(0.36, 10.5)]
+    rec = json.loads((tmp_path / "c" / "c00.json").read_text())
+    assert rec["seed"] == 27 and rec["vector"] == x[0]
+
+    def table(name, met, falls, speed, stream="selection"):
+        (tmp_path / "c" / f"{name}_sel64.json").write_text(json.dumps(
+            {"stream": stream, "worlds": 64, "all_constraints_met": met,
+             "falls": {"falls": falls}, "speed_mean": speed, "seed": 27}))
+
+    table("c00", 60, 0, 0.40)
+    table("c01", 63, 1, 0.30)
+    table("c02", 63, 0, 0.31)
+    table("c03", 63, 0, 0.35)
+    res = fc.pick(tmp_path / "c")
+    assert [r["name"] for r in res["ranked"]] == ["c03", "c02", "c01", "c00"]
+    table("c04", 64, 0, 0.2, stream="test")
+    with pytest.raises(SystemExit, match="selection-stream"):
+        fc.pick(tmp_path / "c")
