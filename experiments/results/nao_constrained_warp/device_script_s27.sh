@@ -64,3 +64,10 @@ if [ "$P" = search ]; then  # search NAME SEED FLAGS...: from flat_r32 (or $INIT
     --out /tmp/rep/$N --no-video --json > /tmp/rep/$N.log 2> /tmp/rep/$N.err
   echo "search $N rc $? after $(( $(date +%s) - T0 )) s"; tail -c 1200 /tmp/rep/$N.err; save
 fi
+if [ "$P" = eval ]; then  # eval GAIT_FILE IMPL...: 4096 test-stream worlds of the record's seed
+  G=$1; shift
+  for impl in "$@"; do
+    timeout $(( $(left) - 10 )) eaco gait-eval $R/$G --backend mjx --impl $impl --trials 4096 --json > /tmp/rep/eval_$impl.json 2> /tmp/rep/eval_$impl.err
+    echo "eval $impl rc $? after $(( $(date +%s) - T0 )) s"; tail -c 300 /tmp/rep/eval_$impl.err; save
+  done
+fi
