@@ -17,6 +17,7 @@ the same worlds for every scene. One JSON per scene under experiments/results/wa
 summary.json (device, versions, command, date); ``--backend mjx`` walks the nominal and all of a
 scene's worlds in one batched MJX call and writes under experiments/results/walk_mjx/ (the
 worlds are the native backend's for the same ``--worlds``: ``sample_worlds`` of ``n`` worlds).
+``--gaits nao_constrained`` walks the library of the constrained gaits (the stored flat gait);
 ``--motors spec`` walks with the robot spec's motor model (current limit, back-EMF, gear
 efficiency, targets interpolated between control steps, as the gait rollouts simulate it)
 instead of the position servos, and writes under experiments/results/walk_spec/ (walk_spec_mjx/
@@ -109,6 +110,9 @@ def main() -> None:
                     help="MJX implementation (--backend mjx)")
     ap.add_argument("--motors", default="servo", choices=("servo", "spec"),
                     help="motor model of the walks: position servos, or the robot spec's")
+    ap.add_argument("--gaits", default="nao", help="gait library (eaco walk --gaits): a "
+                    "shipped name ('nao', 'nao_constrained') or a JSON file; its planning "
+                    "entry prices the routes")
     ap.add_argument("--out", type=Path, default=None, help="default: experiments/results/"
                     "walk (walk_spec with --motors spec), + _mjx with --backend mjx")
     ap.add_argument("--skip-done", action="store_true", help="reuse a scene's walk.json "
@@ -139,7 +143,8 @@ def main() -> None:
                              else name.replace(":", "_"))
         settings = kind.make_settings({"scene": name, "worlds": args.worlds,
                                        "out": str(folder), "backend": args.backend,
-                                       "impl": args.impl, "motors": args.motors})
+                                       "impl": args.impl, "motors": args.motors,
+                                       "gaits": args.gaits})
         try:
             rec = _done(folder, settings) if args.skip_done else None
             if rec is None:

@@ -349,3 +349,25 @@ def test_small_scene_walked_to_the_goal_in_randomised_worlds(tmp_path):
     assert w["n"] == 4 and w["successes"] == sum(x["success"] for x in w["walks"])
     lo, hi = w["success_rate_ci95"]
     assert lo <= w["success_rate"] <= hi
+
+
+def test_the_constrained_library_walks_the_stored_flat_gait():
+    """``nao_constrained``: forward is the stored flat gait (flat_r32) as stored; the turning
+    gaits are it stepping in place at the walk engine's turn bound; the planning entry is the
+    time model fitted on the tuning walks."""
+    from eaco_jax.gait.walk_engine import PARAM_NAMES
+
+    root = Path(wr.__file__).parents[2]
+    g = wr.load_walk_gaits("nao_constrained")
+    flat = json.loads((root / "experiments/results/nao_constrained_warp/flat_r32/"
+                       "best_gait.json").read_text())
+    np.testing.assert_array_equal(g.forward, np.asarray(flat["vector"], np.float64))
+    i, j = PARAM_NAMES.index("step_length"), PARAM_NAMES.index("turn_rate")
+    for vec, rate in ((g.turn_left, 0.3), (g.turn_right, -0.3)):
+        assert vec[i] == 0.0 and vec[j] == rate
+        keep = [k for k in range(len(PARAM_NAMES)) if k not in (i, j)]
+        np.testing.assert_array_equal(vec[keep], g.forward[keep])
+    fit = json.loads((root / "experiments/results/walk/tuning_constrained.json").read_text())
+    fit = fit["configs"][0]["time_model"]
+    assert g.planning["speed_mps"] == pytest.approx(fit["speed_mps"], abs=5e-4)
+    assert g.planning["yaw_rate_deg_s"] == pytest.approx(fit["yaw_rate_deg_s"], abs=0.05)

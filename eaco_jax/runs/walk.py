@@ -63,7 +63,9 @@ class WalkSettings:
                           choices=("test", "selection", "optimisation"))
     max_time: float | None = setting(None, "seconds a walk may last (default: 1.6 x the "
                                      "planned time + 10 s)")
-    gaits: str = setting("nao", "gait library: a shipped name or a JSON file")
+    gaits: str = setting("nao_constrained", "gait library: a shipped name (nao_constrained: the "
+                         "stored flat gait under the motor constraints; nao: the open-loop "
+                         "gait) or a JSON file")
     speeds: str = setting("walk", "what the planner prices: 'walk' (the gait library's "
                           "speed and yaw rate of this controller's walks) or a gait speed "
                           "table (a shipped name such as 'nao', or a JSON file)")
