@@ -36,8 +36,6 @@ def write(fronts: Path, min_speed: float, min_endurance: float, seed: int, out: 
     d = json.loads(fronts.read_text())
     if d["problem"]["second"] != "endurance":
         raise SystemExit(f"{fronts}: a speed x endurance front is needed")
-    base = json.loads(Path(d["problem"]["init"]).read_text()) if Path(
-        d["problem"]["init"]).is_file() else None
     names = param_names(load_robot("nao"))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -56,7 +54,7 @@ def write(fronts: Path, min_speed: float, min_endurance: float, seed: int, out: 
                        "front": {"file": str(fronts), "arm": arm, "run_seed": s["seed"],
                                  "speed": speed, "endurance_min": endurance,
                                  "scored_on": d["seeds"]["scoring"]}}
-                if base is not None:
+                if Path(d["problem"]["init"]).is_file():  # the gait the front was searched around
                     rec["init"] = d["problem"]["init"]
                 (out / f"{name}.json").write_text(json.dumps(rec, indent=1))
                 rows.append({"name": name, "arm": arm, "run_seed": s["seed"],
