@@ -150,7 +150,8 @@ def _warp_overflow(nacon, nefc, naconmax: int, njmax: int) -> None:
 
     nacon, nefc = int(np.max(nacon)), int(np.max(nefc))
     if nacon > naconmax or nefc > njmax:
-        print(f"warning: MuJoCo Warp buffers overflowed (contacts {nacon} > {naconmax} or "
+        print(f"warning: MuJoCo Warp buffers overflowed (contacts or broadphase pairs {nacon} > "
+              f"{naconmax} or "
               f"constraint rows {nefc} > {njmax} per world): contacts were dropped; raise "
               "eaco_jax.gait.rollout_mjx.CAPACITY_MARGIN", file=sys.stderr)
 
@@ -162,6 +163,13 @@ def warp_buffers(model, worlds: int, copies: int = 1) -> tuple[int, int]:
     per_world, rows = contact_capacity(model)
     return (int(CAPACITY_MARGIN * per_world * worlds * max(1, int(copies))),
             int(CAPACITY_MARGIN * rows))
+
+
+def warp_pairs(d) -> jax.Array:
+    """The contact buffer's demand in MuJoCo Warp data ``d``: the larger of the contacts and
+    the broadphase's candidate pairs, both held in ``naconmax`` slots. The pairs overflow
+    first (then the contacts stay within the buffer and only the pairs show the loss)."""
+    return jnp.maximum(jnp.max(d._impl.nacon), jnp.max(d._impl.ncollision))
 
 
 #: Warp buffers are sized at this multiple of :func:`contact_capacity` (an exact upper bound,
@@ -357,8 +365,8 @@ def mjx_rollout(
         row = root_trace(d.qpos)
         alive = alive & ~is_down(row[:, :3], row[:, 3:6], spec.fall_height, spec.fall_tilt_deg,
                                  slope_deg)
-        if warp:  # buffer use: total contacts (all worlds) and rows per world
-            peak = jnp.maximum(peak, jnp.stack([jnp.max(d._impl.nacon), jnp.max(d._impl.nefc)]))
+        if warp:  # buffer use: contacts and broadphase pairs (all worlds), rows per world
+            peak = jnp.maximum(peak, jnp.stack([warp_pairs(d), jnp.max(d._impl.nefc)]))
         return (d, acc, alive, peak, sc), (row, d.qpos if record else None)
 
     start = root_trace(data.qpos)

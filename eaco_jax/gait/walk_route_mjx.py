@@ -75,6 +75,7 @@ from eaco_jax.gait.rollout_mjx import (
     _warp_overflow,
     _world_model,
     contact_capacity,
+    warp_pairs,
 )
 from eaco_jax.gait.rollout_native import native_model, to_torque_actuators
 from eaco_jax.gait.walk_engine import LOWER, PARAM_NAMES, RAMP_TIME, joint_targets
@@ -841,7 +842,7 @@ def _compiled(st: _Static):
             }
             if warp:
                 stt = {**stt, "peak": jnp.maximum(old["peak"], jnp.stack(
-                    [jnp.max(d._impl.nacon), jnp.max(d._impl.nefc)]))}
+                    [warp_pairs(d), jnp.max(d._impl.nefc)]))}
             return (d, s, stt, hist)
 
         if warp:
