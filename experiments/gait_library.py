@@ -222,10 +222,34 @@ def cell_of(desc: np.ndarray, lo: np.ndarray, hi: np.ndarray, grid) -> np.ndarra
     return np.clip(np.floor(u * np.asarray(grid)).astype(int), 0, np.asarray(grid) - 1)
 
 
-def part_gait(args, qd, params) -> tuple[dict, dict]:
+def library_problem(args):
+    """The gait-library problem of the flags: ``--constrained`` under the motor constraints;
+    ``--init GAIT`` narrows the box around a stored gait (``eaco gait --init``'s +/-15 % of
+    each range) except the ``--free`` parameters, which keep their whole range (the commands
+    a cell asks for: step length, direction, turn rate)."""
     prob = make_gait_library_problem(
         backend=args.backend, horizon=args.horizon, worlds=args.worlds, seed=0,
-        speed_range=tuple(args.speed_range), yaw_range=tuple(args.yaw_range))
+        speed_range=tuple(args.speed_range), yaw_range=tuple(args.yaw_range),
+        constrained=args.constrained)
+    if args.init is None:
+        return prob
+    from eaco_jax.runs.gait import narrowed_around
+
+    narrow, _ = narrowed_around(prob.gait, args.init)
+    names = prob.gait.param_names
+    unknown = [n for n in args.free if n not in names]
+    if unknown:
+        raise SystemExit(f"--free {' '.join(unknown)}: not a parameter of the walk engine "
+                         f"({', '.join(names)})")
+    keep = np.asarray([n in args.free for n in names])
+    lo = np.where(keep, np.asarray(prob.gait.lower), np.asarray(narrow.lower))
+    hi = np.where(keep, np.asarray(prob.gait.upper), np.asarray(narrow.upper))
+    return prob.replace(gait=prob.gait.replace(lower=jnp.asarray(lo, jnp.float32),
+                                               upper=jnp.asarray(hi, jnp.float32)))
+
+
+def part_gait(args, qd, params) -> tuple[dict, dict]:
+    prob = library_problem(args)
     grid = tuple(args.grid)
     lo = np.asarray(prob.descriptor_lower, np.float64)
     hi = np.asarray(prob.descriptor_upper, np.float64)
@@ -279,6 +303,8 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
             speed[(i,) + idx] = v["forward_mps"]
             rows[arm][i]["test_fall_rate_mean"] = float(np.mean(v["fall_rate"]))
             rows[arm][i]["test_cells_never_fell"] = int(np.sum(v["fall_rate"] == 0))
+            if prob.constrained:
+                rows[arm][i]["test_cells_feasible"] = int(np.sum(v["violation"] <= 0))
             if arm == "eaco" and i == 0:
                 library = {"seed": seed, "cells": [
                     {"coords": home[j].tolist(), "params": prob.gait.params_dict(a["x"][f]),
@@ -287,7 +313,10 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
                      "test_fall_rate": float(v["fall_rate"][j]),
                      "test_forward_mps": float(v["forward_mps"][j]),
                      "test_turn_deg_s": float(v["turn_deg_s"][j]),
-                     "test_lateral_mps": float(v["lateral_mps"][j])}
+                     "test_lateral_mps": float(v["lateral_mps"][j]),
+                     **({"test_violation": float(v["violation"][j]),
+                         **{f"test_{k}_worst": float(v[f"{k}_worst"][j])
+                            for k in prob.constraint_names}} if prob.constrained else {})}
                     for j, f in enumerate(filled)]}
         with np.errstate(all="ignore"):
             pooled = np.nanmean(falls, axis=0)
@@ -310,7 +339,12 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
             [r.get("test_fall_rate_mean", np.nan) for r in rows[arm]])
         cmp[arm]["test_cells_never_fell"] = st.summary(
             [r.get("test_cells_never_fell", np.nan) for r in rows[arm]])
+        if prob.constrained:
+            cmp[arm]["test_cells_feasible"] = st.summary(
+                [r.get("test_cells_feasible", np.nan) for r in rows[arm]])
     out = {"problem": prob.name, "backend": prob.gait.backend, "horizon_s": args.horizon,
+           "constrained": prob.constrained, "init": None if args.init is None else str(args.init),
+           "free": list(args.free) if args.init is not None else None,
            "worlds": args.worlds, "test_worlds": args.test_worlds, "grid": list(grid),
            "speed_range": list(args.speed_range), "yaw_range": list(args.yaw_range),
            "ants": args.ants, "iterations": args.iterations,
@@ -376,6 +410,13 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=24)
     ap.add_argument("--gait-arms", nargs="+", default=["eaco", "qdax"],
                     choices=("eaco", "isoline", "qdax"))
+    ap.add_argument("--constrained", action="store_true",
+                    help="fill the library under the motor constraints (endurance, current, "
+                    "slip, falls; needs a horizon long enough for them: see docs)")
+    ap.add_argument("--init", type=Path, default=None,
+                    help="narrow the box to +/-15%% of each range around this stored gait")
+    ap.add_argument("--free", nargs="+", default=["step_length", "direction", "turn_rate"],
+                    help="with --init: parameters that keep their whole range")
     ap.add_argument("--validate-chunk", type=int, default=64)
     ap.add_argument("--device-scale", type=int, default=1,
                     help="multiply the gait batch (--ants) and --test-worlds (a GPU: 8 or more)")

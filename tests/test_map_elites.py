@@ -211,6 +211,33 @@ def test_gait_library_fitness_is_survival_then_speed_and_descriptors_are_world_m
     np.testing.assert_allclose(np.asarray(prob.score(res).f)[0], -1.2, rtol=1e-6)
 
 
+def test_constrained_gait_library_fitness_puts_every_feasible_gait_first():
+    """Constructed per-world measurements (3 gaits x 2 worlds): a gait meeting endurance,
+    current, slip and falls in both worlds scores 1 + its mean forward speed, whatever its
+    drift (the library asks for yaw); one 10 C over the winding limit in one world scores
+    1 / (1 + 10 / (limit - ambient)); one that fell in one of two worlds 1 / (1 + 1/2)."""
+    from eaco_jax.gait import quality as ql
+    from eaco_jax.problems.gait_library import make_gait_library_problem
+
+    prob = make_gait_library_problem(horizon=1.0, worlds=0, constrained=True)
+    mm = ql.mo.motor_model(prob.gait.spec)
+    limit, rise = float(np.min(mm.t_limit)), float(np.min(mm.t_limit - mm.t_ambient))
+    nu = prob.gait.spec.nu
+    hot = np.full((3, 2, nu), limit - 15.0, np.float32)
+    hot[1, 1, 3] = limit + 10.0
+    res = {"fell": jnp.asarray([[0, 0], [0, 0], [0, 1]], bool),
+           "forward_mps": jnp.asarray([[0.2, 0.3], [0.2, 0.2], [0.1, 0.1]]),
+           "turn_deg_s": jnp.zeros((3, 2)), "lateral_mps": jnp.zeros((3, 2)),
+           "winding_10min_c": jnp.asarray(hot),
+           "peak_current_max_frac": jnp.full((3, 2), 0.9),
+           "distance_m": jnp.ones((3, 2)), "foot_slip_m": jnp.full((3, 2), 0.02),
+           "drift_deg": jnp.full((3, 2), 40.0)}
+    ev = prob.score(res)
+    np.testing.assert_allclose(np.asarray(ev.f),
+                               [-1.25, -1.0 / (1.0 + 10.0 / rise), -1.0 / 1.5], rtol=1e-5)
+    assert prob.constraint_names == ("endurance", "current", "slip", "falls")
+
+
 def test_a_tiny_real_gait_library_run():
     """4 NAO gaits x 2 iterations, 1 s, one optimisation world: every elite sits in the cell
     of its own measured descriptor and its fitness is in [0, 1 + speed]."""
@@ -244,3 +271,55 @@ def test_gait_library_fills_cells_and_its_qd_score_never_drops():
     assert v["fall_rate"].shape == (len(lib["cell"]),)
     assert np.all((v["fall_rate"] >= 0) & (v["fall_rate"] <= 1))
     assert np.all(np.isfinite(v["forward_mps"])) and np.all(np.isfinite(v["turn_deg_s"]))
+
+
+def test_a_constrained_library_validates_each_cell_against_the_constraints():
+    """3 NAO gaits, 1 s, one world, motor model on: the test-world violation is what the
+    constraints' own normalisation makes of the reported worst-world values."""
+    from eaco_jax.gait import constraints as gc
+    from eaco_jax.gait import quality as ql
+    from eaco_jax.problems.gait_library import make_gait_library_problem, validate
+
+    prob = make_gait_library_problem(backend="native", horizon=1.0, worlds=1, seed=2,
+                                     constrained=True)
+    x = jax.random.uniform(jax.random.PRNGKey(3), (3, prob.dim), minval=prob.lower,
+                           maxval=prob.upper)
+    v = validate(prob, x, trials=2, seed=4, chunk=4)
+    vals = {k: jnp.asarray(v[f"{k}_worst"]) for k in prob.constraint_names}
+    g = gc.normalised(vals, ql.mo.motor_model(prob.gait.spec), 1.0, 2)
+    np.testing.assert_allclose(v["violation"], np.asarray(gc.violation(g)), rtol=1e-5)
+    assert v["violation"].shape == (3,) and np.all(v["violation"] >= 0)
+    np.testing.assert_allclose(v["falls_worst"], 2 * v["fall_rate"])
+
+
+def test_library_box_narrows_around_a_gait_but_keeps_the_free_commands(monkeypatch):
+    """experiments/gait_library.py --init GAIT --free ...: every parameter but the free ones
+    is narrowed around the stored gait (eaco gait --init's box); the free ones keep the whole
+    range; an unknown free name is refused."""
+    import argparse
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    monkeypatch.syspath_prepend(str(root / "experiments"))
+    import gait_library as gl
+
+    init = root / "experiments/results/nao_constrained_warp/flat_r32/best_gait.json"
+    args = argparse.Namespace(backend="native", horizon=1.0, worlds=1, speed_range=[-0.1, 0.3],
+                              yaw_range=[-30.0, 30.0], constrained=True, init=init,
+                              free=["step_length", "turn_rate"])
+    full = gl.make_gait_library_problem(backend="native", horizon=1.0, worlds=1)
+    prob = gl.library_problem(args)
+    assert prob.constrained
+    names = list(prob.param_names)
+    lo, hi = np.asarray(prob.lower), np.asarray(prob.upper)
+    flo, fhi = np.asarray(full.lower), np.asarray(full.upper)
+    for n in ("step_length", "turn_rate"):
+        i = names.index(n)
+        assert lo[i] == flo[i] and hi[i] == fhi[i]
+    for n in ("hip_height", "period", "direction"):
+        i = names.index(n)
+        assert flo[i] <= lo[i] < hi[i] <= fhi[i]
+        assert hi[i] - lo[i] < 0.31 * (fhi[i] - flo[i])
+    args.free = ["stride"]
+    with pytest.raises(SystemExit, match="stride"):
+        gl.library_problem(args)

@@ -64,7 +64,8 @@ UNITS = {"endurance": "C", "current": "x limit", "slip": "m/m", "drift": "deg",
 
 
 def names(turn: str | None) -> tuple[str, ...]:
-    """The constraints of a gait problem (walking: all five; turning: without ``drift``)."""
+    """The constraints of a gait problem (walking: all five; any other ``turn``, a turning gait's
+    or the gait library's whose yaw rate is asked for: without ``drift``)."""
     return tuple(c for c in CONSTRAINTS if turn is None or c != "drift")
 
 

@@ -199,22 +199,31 @@ class GaitProblem(Box):
             res["fitness"] = self._penalised(res)
         return {k: v.reshape((m, r) + v.shape[1:]) for k, v in res.items()}
 
-    def walk_descriptors(self, solutions: jax.Array, worlds: Worlds | None = None
-                         ) -> dict[str, jax.Array]:
+    def walk_descriptors(self, solutions: jax.Array, worlds: Worlds | None = None,
+                         quality: bool = False) -> dict[str, jax.Array]:
         """What each gait ``(m, dim)`` does in each world, ``(m, R)`` (R = 1 without
         ``worlds``), from one batched rollout: ``forward_mps`` and ``lateral_mps`` (the torso's
         displacement in its own heading frame, + = forward / left, per second walked, until
         the fall or the horizon; :func:`body_frame_speeds`), ``turn_deg_s`` (+ = left),
-        ``fell`` and ``fitness`` (this problem's, without the energy penalty)."""
+        ``fell`` and ``fitness`` (this problem's, without the energy penalty); with
+        ``quality`` also everything :meth:`rollout` returns with it (what the constraints of
+        :mod:`eaco_jax.gait.constraints` are computed from)."""
+        if quality and not self.spec.has_motors:
+            raise ProblemError(f"robot {self.spec.name!r} has no motor datasheet: no "
+                               "gait-quality metrics")
         m = solutions.shape[0]
         r = 1 if worlds is None else worlds.size
-        trace = self._rollout(solutions, worlds, False)["trace"]
-        summary = self.summarize(trace)
+        out = self._rollout(solutions, worlds, quality)
+        summary = self.summarize(out["trace"])
         res = gait_fitness(summary, self.direction_deg, self.turn)
-        fwd, lat = body_frame_speeds(trace, self.spec.control_dt, summary.fall_time)
-        out = {"forward_mps": fwd, "lateral_mps": lat, "turn_deg_s": res["turn_deg_s"],
-               "fell": res["fell"], "fitness": res["fitness"]}
-        return {k: v.reshape((m, r)) for k, v in out.items()}
+        fwd, lat = body_frame_speeds(out["trace"], self.spec.control_dt, summary.fall_time)
+        if quality:
+            res.update(self._quality(out["acc"], res["distance_m"], worlds, m * r))
+        else:
+            res = {"turn_deg_s": res["turn_deg_s"], "fell": res["fell"],
+                   "fitness": res["fitness"]}
+        res.update(forward_mps=fwd, lateral_mps=lat)
+        return {k: v.reshape((m, r) + v.shape[1:]) for k, v in res.items()}
 
     def _quality(self, acc, distance, worlds: Worlds | None, nb: int) -> dict:
         model = native_model(self.spec, float(self.slope_deg), self.accuracy)

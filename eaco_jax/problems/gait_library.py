@@ -14,6 +14,13 @@ batched rollout (:meth:`~eaco_jax.problems.gait.GaitProblem.walk_descriptors`), 
   that falls in any world thus scores below 1 and one that never falls scores 1 + its speed.
   ``qd_offset = 0``: the QD score is the sum of the filled cells' fitness.
 
+With ``constrained=True`` the library is filled under the motor constraints of
+:mod:`eaco_jax.gait.constraints` (endurance, current, slip, falls; no drift: the yaw rate is
+what a cell asks for), from the same batched rollout with the motor model: fitness ``1 +``
+the forward speed (at least 0) where every constraint holds in every world, else
+``1 / (1 + violation)``, so a feasible gait beats every infeasible one and among those the
+smaller violation wins.
+
 Cells' gaits are validated on the ``test`` stream (:func:`validate`), whose worlds no step of
 the search saw.
 """
@@ -29,6 +36,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from eaco_jax.gait import constraints as gc
+from eaco_jax.gait import quality as ql
 from eaco_jax.gait.worlds import RobustConfig, optimisation_key, stream_key
 from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.gait import GaitProblem, make_gait_problem
@@ -51,7 +60,11 @@ class GaitLibraryProblem:
     descriptor_lower: Array
     descriptor_upper: Array
     lateral: bool = struct.field(pytree_node=False, default=False)
+    constrained: bool = struct.field(pytree_node=False, default=False)
     name: str = struct.field(pytree_node=False, default="gait-library")
+
+    #: the constraints of a constrained library: a turning gait's (no drift)
+    constraint_names: ClassVar[tuple[str, ...]] = gc.names("library")
 
     kind: ClassVar[str] = "qd"
     differentiable = False
@@ -98,15 +111,27 @@ class GaitLibraryProblem:
     def measure(self, solutions: Array, worlds: Any = None) -> dict[str, Array]:
         """Per-world measurements ``(m, R)`` of gaits ``(m, dim)`` (clipped into the box)."""
         x = jnp.clip(solutions.astype(self.dtype), self.lower, self.upper)
-        return self.gait.walk_descriptors(x, worlds)
+        return self.gait.walk_descriptors(x, worlds, quality=self.constrained)
+
+    def constraint_values(self, res: dict[str, Array]) -> tuple[dict[str, Array], Array]:
+        """Each constraint's value ``{name: (m,)}`` (worst world) and the total normalised
+        violation ``(m,)`` of per-world measurements of a constrained library."""
+        vals = gc.values(res, "library")
+        g = gc.normalised(vals, ql.mo.motor_model(self.gait.spec), self.gait.horizon,
+                          res["fell"].shape[1])
+        return vals, gc.violation(g)
 
     def score(self, res: dict[str, Array]) -> QDEvaluation:
         """Fitness and descriptors from per-world measurements ``(m, R)``."""
         fell = res["fell"].astype(jnp.float32)
-        survived = 1.0 - jnp.mean(fell, axis=1)
         fwd = jnp.mean(res["forward_mps"], axis=1)
-        never = jnp.all(fell == 0, axis=1)
-        fitness = survived + jnp.where(never, jnp.maximum(fwd, 0.0), 0.0)
+        if self.constrained:
+            _, viol = self.constraint_values(res)
+            fitness = jnp.where(viol <= 0, 1.0 + jnp.maximum(fwd, 0.0), 1.0 / (1.0 + viol))
+        else:
+            survived = 1.0 - jnp.mean(fell, axis=1)
+            never = jnp.all(fell == 0, axis=1)
+            fitness = survived + jnp.where(never, jnp.maximum(fwd, 0.0), 0.0)
         cols = [fwd, jnp.mean(res["turn_deg_s"], axis=1)]
         if self.lateral:
             cols.append(jnp.mean(res["lateral_mps"], axis=1))
@@ -139,17 +164,20 @@ def make_gait_library_problem(
     lateral_range: tuple[float, float] | None = None,
     impl: str = "auto",
     robust: RobustConfig | None = None,
+    constrained: bool = False,
 ) -> GaitLibraryProblem:
     """The gait-library problem of ``robot`` (a biped: the walk engine's direction and turn
     rate give the descriptors' range): ``horizon`` seconds per rollout, ``worlds`` randomised
     worlds per evaluation from the optimisation stream of ``seed`` (0: the nominal world only;
     ``robust`` overrides both with a full :class:`RobustConfig`); descriptor ranges for the
-    grid (``lateral_range`` adds the lateral speed as a third descriptor)."""
+    grid (``lateral_range`` adds the lateral speed as a third descriptor); ``constrained``
+    fills it under the motor constraints (see the module docstring)."""
     if not isinstance(worlds, int) or worlds < 0:
         raise ProblemError(f"worlds must be an int >= 0, got {worlds!r}")
     if robust is None and worlds > 0:
         robust = RobustConfig(R=worlds, aggregate="mean", seed=int(seed))
-    gait = make_gait_problem(robot, backend=backend, horizon=horizon, robust=robust, impl=impl)
+    gait = make_gait_problem(robot, backend=backend, horizon=horizon, robust=robust, impl=impl,
+                             constrained=constrained)
     if gait.spec.gait != "biped":
         raise ProblemError(f"the gait library needs a biped's walk engine (direction and turn "
                            f"rate); robot {gait.spec.name!r} is a {gait.spec.gait}: use a "
@@ -163,8 +191,9 @@ def make_gait_library_problem(
     lo = jnp.asarray([r[0] for r in ranges], jnp.float32)
     hi = jnp.asarray([r[1] for r in ranges], jnp.float32)
     return GaitLibraryProblem(gait=gait, descriptor_lower=lo, descriptor_upper=hi,
-                              lateral=lateral_range is not None,
-                              name=f"gait-library-{gait.spec.name}")
+                              lateral=lateral_range is not None, constrained=constrained,
+                              name=f"gait-library-{gait.spec.name}"
+                              + ("-constrained" if constrained else ""))
 
 
 def validate(problem: GaitLibraryProblem, x: Any, trials: int, seed: int = 0,
@@ -172,21 +201,32 @@ def validate(problem: GaitLibraryProblem, x: Any, trials: int, seed: int = 0,
     """Each gait ``(k, dim)`` in ``trials`` randomised worlds of the TEST stream of ``seed``
     (``stream_key(seed, "test", batch)``; worlds nothing in a search chose on), as host arrays
     ``(k,)``: ``fall_rate`` and the world means of ``forward_mps``, ``turn_deg_s``,
-    ``lateral_mps``; gaits go ``chunk`` at a time (one batched rollout each)."""
+    ``lateral_mps``; a constrained library's also ``violation`` (over the test worlds, 0:
+    every constraint holds in each) and each constraint's worst-world value; gaits go
+    ``chunk`` at a time (one batched rollout each)."""
     cfg = problem.gait.robust or RobustConfig(aggregate="mean", seed=int(seed))
     gait = problem.gait.replace(robust=dataclasses.replace(cfg, seed=int(seed)))
     worlds = gait.worlds(stream_key(int(seed), "test", int(batch)), n=int(trials))
     x = np.asarray(x, np.float32).reshape(-1, problem.dim)
-    run = jax.jit(lambda xs: problem.measure(xs, worlds))
-    out: dict[str, list] = {"fall_rate": [], "forward_mps": [], "turn_deg_s": [],
-                            "lateral_mps": []}
+    def run_one(xs):
+        res = problem.measure(xs, worlds)
+        out = {"fall_rate": jnp.mean(res["fell"].astype(jnp.float32), axis=1),
+               **{k: jnp.mean(res[k], axis=1)
+                  for k in ("forward_mps", "turn_deg_s", "lateral_mps")}}
+        if problem.constrained:
+            vals, out["violation"] = problem.constraint_values(res)
+            out.update({f"{k}_worst": v for k, v in vals.items()})
+        return out
+
+    run = jax.jit(run_one)
+    out: dict[str, list] = {}
     for i in range(0, len(x), chunk):
         part = x[i:i + chunk]
         pad = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), 0)])
-        res = jax.tree.map(np.asarray, run(jnp.asarray(pad)))
-        out["fall_rate"].append(res["fell"].mean(axis=1)[:len(part)])
-        for k in ("forward_mps", "turn_deg_s", "lateral_mps"):
-            out[k].append(res[k].mean(axis=1)[:len(part)])
+        for k, v in run(jnp.asarray(pad)).items():
+            out.setdefault(k, []).append(np.asarray(v)[:len(part)])
+    if not out:
+        out = {k: [] for k in ("fall_rate", "forward_mps", "turn_deg_s", "lateral_mps")}
     return {k: np.concatenate(v) if v else np.zeros((0,), np.float32) for k, v in out.items()}
 
 
