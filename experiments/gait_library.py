@@ -56,6 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import eaco_jax as ea
+from eaco_jax.gait.worlds import RobustConfig
 from eaco_jax.problems.gait_library import make_gait_library_problem, validate
 from eaco_jax.problems.qd import rastrigin_proj
 from eaco_jax.strategies.map_elites import MAPElites, MAPElitesParams, archive_metrics
@@ -227,10 +228,14 @@ def library_problem(args):
     ``--init GAIT`` narrows the box around a stored gait (``eaco gait --init``'s +/-15 % of
     each range) except the ``--free`` parameters, which keep their whole range (the commands
     a cell asks for: step length, direction, turn rate)."""
+    robust = None
+    if args.target_noise is not None and args.worlds > 0:
+        robust = RobustConfig(R=args.worlds, aggregate="mean", seed=0,
+                              target_noise=args.target_noise)
     prob = make_gait_library_problem(
         backend=args.backend, horizon=args.horizon, worlds=args.worlds, seed=0,
         speed_range=tuple(args.speed_range), yaw_range=tuple(args.yaw_range),
-        constrained=args.constrained)
+        constrained=args.constrained, robust=robust)
     if args.init is None:
         return prob
     from eaco_jax.runs.gait import narrowed_around
@@ -344,6 +349,8 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
                 [r.get("test_cells_feasible", np.nan) for r in rows[arm]])
     out = {"problem": prob.name, "backend": prob.gait.backend, "horizon_s": args.horizon,
            "constrained": prob.constrained, "init": None if args.init is None else str(args.init),
+           "target_noise": (prob.gait.robust.target_noise if prob.gait.robust is not None
+                            else None),
            "free": list(args.free) if args.init is not None else None,
            "worlds": args.worlds, "test_worlds": args.test_worlds, "grid": list(grid),
            "speed_range": list(args.speed_range), "yaw_range": list(args.yaw_range),
@@ -413,6 +420,9 @@ def main() -> None:
     ap.add_argument("--constrained", action="store_true",
                     help="fill the library under the motor constraints (endurance, current, "
                     "slip, falls; needs a horizon long enough for them: see docs)")
+    ap.add_argument("--target-noise", type=float, default=None,
+                    help="joint-target noise std of the worlds, rad (default RobustConfig's; "
+                    "the encoders' quantisation: 0.000443)")
     ap.add_argument("--init", type=Path, default=None,
                     help="narrow the box to +/-15%% of each range around this stored gait")
     ap.add_argument("--free", nargs="+", default=["step_length", "direction", "turn_rate"],
