@@ -97,3 +97,9 @@ def test_buffers_hold_every_vmapped_copy():
     assert p.for_rows(10) is p
     w = p.replace(impl="warp")
     assert w.for_rows(10).copies == 10 and w.for_rows(1).copies == 1
+    from eaco_jax.problems.gait_library import make_gait_library_problem
+
+    lib = make_gait_library_problem(backend="mjx", horizon=0.1, worlds=1, impl="jax")
+    assert lib.for_rows(10) is lib
+    lib = lib.replace(gait=lib.gait.replace(impl="warp"))
+    assert lib.for_rows(10).gait.copies == 10  # the library's seeds share Warp's buffer too

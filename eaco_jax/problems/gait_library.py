@@ -104,6 +104,12 @@ class GaitLibraryProblem:
     def param_names(self) -> tuple[str, ...]:
         return self.gait.param_names
 
+    def for_rows(self, rows: int) -> GaitLibraryProblem:
+        """This problem for ``rows`` vmapped copies of its evaluation: the gait problem's
+        (:meth:`~eaco_jax.problems.gait.GaitProblem.for_rows`: MuJoCo Warp's contact buffer)."""
+        gait = self.gait.for_rows(rows)
+        return self if gait is self.gait else self.replace(gait=gait)
+
     def shown_best(self, cost: float) -> float:
         """A QD strategy's ``best_cost`` is minus the QD score: show the score."""
         return -cost
