@@ -214,6 +214,7 @@ def validate(problem: GaitLibraryProblem, x: Any, trials: int, seed: int = 0,
     gait = problem.gait.replace(robust=dataclasses.replace(cfg, seed=int(seed)))
     worlds = gait.worlds(stream_key(int(seed), "test", int(batch)), n=int(trials))
     x = np.asarray(x, np.float32).reshape(-1, problem.dim)
+
     def run_one(xs):
         res = problem.measure(xs, worlds)
         out = {"fall_rate": jnp.mean(res["fell"].astype(jnp.float32), axis=1),
