@@ -5,11 +5,14 @@ the metrics in one compiled chunk, seeds vmapped) and (b) as the bare evaluation
 
 Session 27's Warp fronts run took 201 s for the colony against 108 s for NSGA-II at equal
 evaluations; this script measures the overhead on any backend, so the Warp case can be timed
-beside the CPU ones.
+beside the CPU ones. ``--graph-mode`` picks MuJoCo Warp's CUDA graph mode: MJX's default
+(``warp``) replays a captured graph only for the buffer addresses it was captured with, which a
+call inside ``minimize``'s compiled loop may not keep; ``warp_staged`` copies through fixed
+staging buffers instead.
 
     python experiments/fronts_overhead.py --backend native --ants 16 --generations 6 --seeds 4
     python experiments/fronts_overhead.py --backend mjx --impl warp --ants 128 --worlds 4 \\
-        --generations 4 --seeds 10 --horizon 20        # a GPU
+        --generations 4 --seeds 10 --horizon 20 [--graph-mode warp_staged]   # a GPU
 
 Writes ``results/gait_fronts/overhead_<backend>_<impl>.json``.
 """
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import os
 import sys
 import time
 from pathlib import Path
@@ -27,6 +31,7 @@ import jax
 import jax.numpy as jnp
 
 import eaco_jax as ea
+from eaco_jax.gait.rollout_mjx import WARP_GRAPH_MODES
 from eaco_jax.problems.gait_mo import make_gait_mo_problem
 from eaco_jax.runs.gait import narrowed_around, steering_of, world_ranges
 from eaco_jax.strategies import MOEACO
@@ -45,8 +50,13 @@ def main() -> None:
     ap.add_argument("--generations", type=int, default=6)
     ap.add_argument("--seeds", type=int, default=4)
     ap.add_argument("--horizon", type=float, default=1.0)
+    ap.add_argument("--graph-mode", default=None, choices=WARP_GRAPH_MODES,
+                    help="MuJoCo Warp's CUDA graph mode (EACO_WARP_GRAPH_MODE; default MJX's: "
+                    "warp, which replays a graph only for the buffer addresses it captured)")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
+    if args.graph_mode is not None:
+        os.environ["EACO_WARP_GRAPH_MODE"] = args.graph_mode
     robust = world_ranges(0, 0.000443, R=args.worlds, resample=True)
     problem = make_gait_mo_problem("nao", "endurance", backend=args.backend, impl=args.impl,
                                    horizon=args.horizon, robust=robust,
@@ -76,7 +86,8 @@ def main() -> None:
     ratio = colony["run_s"] / bare["run_s"]
     print(f"colony run {colony['run_s']:.2f} s (compile {colony['compile_s']:.1f}), bare "
           f"evaluation {bare['run_s']:.2f} s (compile {bare['compile_s']:.1f}): x{ratio:.2f}")
-    out = args.out or RESULTS / f"overhead_{args.backend}_{args.impl}.json"
+    mode = f"_{args.graph_mode}" if args.graph_mode else ""
+    out = args.out or RESULTS / f"overhead_{args.backend}_{args.impl}{mode}.json"
     st.write_results(out, [{"arm": "colony (minimize)", **colony},
                            {"arm": "bare evaluation", **bare}],
                      ratio_run=ratio, date=datetime.date.today().isoformat(),

@@ -103,3 +103,18 @@ def test_buffers_hold_every_vmapped_copy():
     assert lib.for_rows(10) is lib
     lib = lib.replace(gait=lib.gait.replace(impl="warp"))
     assert lib.for_rows(10).gait.copies == 10  # the library's seeds share Warp's buffer too
+
+
+def test_warp_graph_mode_comes_from_the_environment(monkeypatch):
+    """``EACO_WARP_GRAPH_MODE``: unset is MJX's default (None); a mode in any case is taken;
+    anything else is one line naming the modes."""
+    from eaco_jax.errors import ConfigError
+    from eaco_jax.gait.rollout_mjx import warp_graph_mode
+
+    monkeypatch.delenv("EACO_WARP_GRAPH_MODE", raising=False)
+    assert warp_graph_mode() is None
+    monkeypatch.setenv("EACO_WARP_GRAPH_MODE", " Warp_Staged ")
+    assert warp_graph_mode() == "warp_staged"
+    monkeypatch.setenv("EACO_WARP_GRAPH_MODE", "staged")
+    with pytest.raises(ConfigError, match="warp_staged_ex, jax, none"):
+        warp_graph_mode()

@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from eaco_jax.errors import ConfigError
 from eaco_jax.gait import motors as mo
 from eaco_jax.gait import quality as ql
 from eaco_jax.gait import steer as st
@@ -82,16 +83,44 @@ def mjx_model(spec: RobotSpec, slope_deg: float, accuracy: str, impl: str = "jax
 WARP_ITERATIONS = 8
 
 
+#: CUDA graph modes of MJX's Warp FFI (``warp.JaxCallableGraphMode``), chosen by the
+#: environment variable ``EACO_WARP_GRAPH_MODE`` (unset: MJX's default on a GPU, ``warp``, which
+#: replays a captured graph only for the buffer addresses it was captured with;
+#: ``warp_staged`` replays it through staging buffers whatever the addresses)
+WARP_GRAPH_MODES = ("warp", "warp_staged", "warp_staged_ex", "jax", "none")
+
+
+def warp_graph_mode() -> str | None:
+    """The graph mode ``EACO_WARP_GRAPH_MODE`` asks for (None: unset, MJX's default)."""
+    import os
+
+    mode = os.environ.get("EACO_WARP_GRAPH_MODE", "").strip().lower()
+    if not mode:
+        return None
+    if mode not in WARP_GRAPH_MODES:
+        raise ConfigError(f"EACO_WARP_GRAPH_MODE={mode!r} is not a Warp graph mode: use one of "
+                          f"{', '.join(WARP_GRAPH_MODES)}, or unset it")
+    return mode
+
+
 def _warp_model(model):
     """MuJoCo Warp model: at least :data:`WARP_ITERATIONS` solver iterations, and no print
-    when a world uses them all (a deliberate cap); buffer overflows still warn."""
+    when a world uses them all (a deliberate cap); buffer overflows still warn; the graph
+    mode of :func:`warp_graph_mode` where one is set."""
     import copy
 
     from mujoco.mjx.third_party.mujoco_warp._src.types import OverflowType
 
     model = copy.copy(model)
     model.opt.iterations = max(int(model.opt.iterations), WARP_ITERATIONS)
-    mm = mjx.put_model(model, impl="warp")
+    mode = warp_graph_mode()
+    if mode is None:
+        mm = mjx.put_model(model, impl="warp")
+    else:
+        import warp as wp
+
+        mm = mjx.put_model(model, impl="warp",
+                           graph_mode=getattr(wp.JaxCallableGraphMode, mode.upper()))
     capped = int(getattr(OverflowType, "ITERATIONS", 0)) | int(
         getattr(OverflowType, "LS_ITERATIONS", 0))
     bits = int(OverflowType.ALL) & ~capped
