@@ -29,6 +29,7 @@ from pathlib import Path
 import common as st
 import jax
 import jax.numpy as jnp
+from gait_fronts import seeds_evaluate
 
 import eaco_jax as ea
 from eaco_jax.gait.rollout_mjx import WARP_GRAPH_MODES
@@ -70,8 +71,7 @@ def main() -> None:
     colony = {"wall_s": time.perf_counter() - t0, "compile_s": res.compile_seconds,
               "run_s": res.seconds - res.compile_seconds}
 
-    prob = problem.for_rows(len(seeds)) if hasattr(problem, "for_rows") else problem
-    evaluate = jax.jit(jax.vmap(prob.evaluate))
+    evaluate = seeds_evaluate(problem, len(seeds))
     x = jnp.broadcast_to((problem.lower + problem.upper) / 2,
                          (len(seeds), args.ants, problem.dim))
     keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(seeds))

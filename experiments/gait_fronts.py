@@ -102,6 +102,16 @@ def run_colony(problem, seeds: list[int], ants: int, generations: int) -> tuple[
     return finals, timing
 
 
+def seeds_evaluate(problem, rows: int):
+    """``problem.evaluate`` jitted and vmapped over ``rows`` seeds, ``(rows, ants, dim)`` with
+    one key per row (ignored by a problem without worlds), as NSGA-II's arm calls it; MuJoCo
+    Warp's shared contact buffer sized for every row (``for_rows``)."""
+    prob = problem.for_rows(rows) if hasattr(problem, "for_rows") else problem
+    if problem.stochastic:
+        return jax.jit(jax.vmap(prob.evaluate))
+    return jax.jit(jax.vmap(lambda x, _k: prob.evaluate(x)))
+
+
 def run_nsga2(problem, seeds: list[int], ants: int, generations: int) -> tuple[list, dict]:
     """pymoo's NSGA-II through its ask-and-tell API, all seeds in lockstep: each generation's
     populations of every seed are evaluated as one call, the jitted evaluation vmapped over the
@@ -111,12 +121,7 @@ def run_nsga2(problem, seeds: list[int], ants: int, generations: int) -> tuple[l
     from pymoo.core.problem import Problem
     from pymoo.problems.static import StaticProblem
 
-    keyed = problem.stochastic
-    prob = problem.for_rows(len(seeds)) if hasattr(problem, "for_rows") else problem
-    if keyed:
-        evaluate = jax.jit(jax.vmap(prob.evaluate))
-    else:
-        evaluate = jax.jit(jax.vmap(lambda x, _k: prob.evaluate(x)))
+    evaluate = seeds_evaluate(problem, len(seeds))
 
     class GaitMO(Problem):
         def __init__(self) -> None:

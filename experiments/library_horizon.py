@@ -30,7 +30,7 @@ import numpy as np
 import eaco_jax as ea
 from eaco_jax.gait.worlds import RobustConfig
 from eaco_jax.problems.gait_library import make_gait_library_problem, validate
-from eaco_jax.runs.gait import narrowed_around
+from eaco_jax.runs.gait import params_vector, read_params_file
 
 RESULTS = Path(__file__).resolve().parent / "results" / "gait_library"
 FLAT = (Path(__file__).resolve().parent / "results" / "nao_constrained_warp" / "flat_r32"
@@ -41,7 +41,7 @@ WALK_GAITS = Path(ea.__file__).resolve().parent / "data" / "walk_gaits" / "nao_c
 def gaits(problem, init: Path) -> dict[str, np.ndarray]:
     """The flat gait, and the route walker's turning gaits (nao_constrained.json's turn
     entries: the flat gait with ``step_length`` 0 and ``turn_rate`` +/-0.3)."""
-    _, flat = narrowed_around(problem.gait, init)
+    flat = params_vector(read_params_file(init), problem.gait, str(init))
     lib = json.loads(WALK_GAITS.read_text())
     out = {"flat": np.asarray(flat, np.float32)}
     for mode in ("turn_left", "turn_right"):

@@ -113,14 +113,12 @@ def _warp_model(model):
 
     model = copy.copy(model)
     model.opt.iterations = max(int(model.opt.iterations), WARP_ITERATIONS)
-    mode = warp_graph_mode()
-    if mode is None:
-        mm = mjx.put_model(model, impl="warp")
-    else:
+    mode, extra = warp_graph_mode(), {}
+    if mode is not None:
         import warp as wp
 
-        mm = mjx.put_model(model, impl="warp",
-                           graph_mode=getattr(wp.JaxCallableGraphMode, mode.upper()))
+        extra["graph_mode"] = getattr(wp.JaxCallableGraphMode, mode.upper())
+    mm = mjx.put_model(model, impl="warp", **extra)
     capped = int(getattr(OverflowType, "ITERATIONS", 0)) | int(
         getattr(OverflowType, "LS_ITERATIONS", 0))
     bits = int(OverflowType.ALL) & ~capped
