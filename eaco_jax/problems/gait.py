@@ -179,23 +179,33 @@ class GaitProblem(Box):
         return native_rollout_callback(controls, self.spec, self.slope_deg, self.accuracy,
                                        worlds, quality, steer=steer)
 
+    def _measured(self, solutions: jax.Array, worlds: Worlds | None, quality: bool
+                  ) -> tuple[jax.Array, GaitSummary, dict[str, jax.Array]]:
+        """One batched rollout's trace, its summary and the flat ``(m * R, ...)`` results
+        :meth:`rollout` and :meth:`walk_descriptors` both start from: the fitness of
+        :func:`~eaco_jax.gait.fitness.gait_fitness` (no energy penalty), ``fall_time``, and
+        with ``quality`` the metrics of :mod:`eaco_jax.gait.quality`."""
+        if quality and not self.spec.has_motors:
+            raise ProblemError(f"robot {self.spec.name!r} has no motor datasheet: no energy or "
+                               "gait-quality metrics")
+        nb = solutions.shape[0] * (1 if worlds is None else worlds.size)
+        out = self._rollout(solutions, worlds, quality)
+        summary = self.summarize(out["trace"])
+        res = gait_fitness(summary, self.direction_deg, self.turn)
+        res["fall_time"] = summary.fall_time
+        if quality:
+            res.update(self._quality(out["acc"], res["distance_m"], worlds, nb))
+        return out["trace"], summary, res
+
     def rollout(self, solutions: jax.Array, worlds: Worlds | None = None,
                 quality: bool = False) -> dict[str, jax.Array]:
         """Per-world results ``(m, R)`` of gaits ``(m, dim)`` (R = 1 without ``worlds``):
         ``fitness``, ``distance_m``, ``speed_mps``, ``fell``, ``drift_deg``, ``fall_time``, and
         with ``quality`` the metrics of :mod:`eaco_jax.gait.quality` (per-joint ones
         ``(m, R, nu)``). The fitness includes the problem's energy penalty, if any."""
-        if quality and not self.spec.has_motors:
-            raise ProblemError(f"robot {self.spec.name!r} has no motor datasheet: no energy or "
-                               "gait-quality metrics")
-        m = solutions.shape[0]
-        r = 1 if worlds is None else worlds.size
-        out = self._rollout(solutions, worlds, quality)
-        summary = self.summarize(out["trace"])
-        res = gait_fitness(summary, self.direction_deg, self.turn)
-        res["fall_time"] = summary.fall_time
+        m, r = solutions.shape[0], 1 if worlds is None else worlds.size
+        _, _, res = self._measured(solutions, worlds, quality)
         if quality:
-            res.update(self._quality(out["acc"], res["distance_m"], worlds, m * r))
             res["fitness"] = self._penalised(res)
         return {k: v.reshape((m, r) + v.shape[1:]) for k, v in res.items()}
 
@@ -208,21 +218,12 @@ class GaitProblem(Box):
         ``fell`` and ``fitness`` (this problem's, without the energy penalty); with
         ``quality`` also everything :meth:`rollout` returns with it (what the constraints of
         :mod:`eaco_jax.gait.constraints` are computed from)."""
-        if quality and not self.spec.has_motors:
-            raise ProblemError(f"robot {self.spec.name!r} has no motor datasheet: no "
-                               "gait-quality metrics")
-        m = solutions.shape[0]
-        r = 1 if worlds is None else worlds.size
-        out = self._rollout(solutions, worlds, quality)
-        summary = self.summarize(out["trace"])
-        res = gait_fitness(summary, self.direction_deg, self.turn)
-        fwd, lat = body_frame_speeds(out["trace"], self.spec.control_dt, summary.fall_time)
-        if quality:
-            res.update(self._quality(out["acc"], res["distance_m"], worlds, m * r))
-        else:
-            res = {"turn_deg_s": res["turn_deg_s"], "fell": res["fell"],
-                   "fitness": res["fitness"]}
-        res.update(forward_mps=fwd, lateral_mps=lat)
+        m, r = solutions.shape[0], 1 if worlds is None else worlds.size
+        trace, summary, res = self._measured(solutions, worlds, quality)
+        if not quality:
+            res = {k: res[k] for k in ("turn_deg_s", "fell", "fitness")}
+        res["forward_mps"], res["lateral_mps"] = body_frame_speeds(
+            trace, self.spec.control_dt, summary.fall_time)
         return {k: v.reshape((m, r) + v.shape[1:]) for k, v in res.items()}
 
     def _quality(self, acc, distance, worlds: Worlds | None, nb: int) -> dict:
