@@ -102,15 +102,18 @@ def run_ours(problem, variation: str, grid, ants: int, iterations: int, seeds: l
     t0 = time.perf_counter()
     res = ea.minimize(problem, s, seed=seeds, iterations=iterations, params=params)
     wall = time.perf_counter() - t0
-    cost = np.asarray(res.state.archive_cost)
+    state = res.state
+    if len(seeds) == 1:  # minimize returns one seed's state unbatched
+        state = jax.tree.map(lambda a: a[None], state)
+    cost, evals = np.asarray(state.archive_cost), np.asarray(state.evaluations)
     rows = []
     for i, seed in enumerate(seeds):
         m = {k: float(v) for k, v in archive_metrics(jnp.asarray(cost[i]),
                                                      float(problem.qd_offset)).items()}
-        rows.append({"seed": seed, "evaluations": int(np.asarray(res.state.evaluations)[i]),
+        rows.append({"seed": seed, "evaluations": int(evals[i]),
                      **m, "wall_s_all_seeds": wall,
                      "compile_s": float(res.compile_seconds)})
-    return rows, res.state, s
+    return rows, state, s
 
 
 def run_qdax(qd, problem, grid, ants: int, iterations: int, seeds: list[int],
