@@ -12,6 +12,10 @@ seed's *selection* stream and applies the rule fixed before any was run:
 
 The chosen gait is then walked on the same seed's *test* stream, which chose nothing.
 
+A speed x CoT front says nothing of heat, and holds many points past ``--min-speed``: from it
+``write`` takes, per arm and run seed, the one point at or past ``--min-speed`` with the lowest
+electrical cost of transport (the most economical fast gait of each front).
+
     cd experiments; F=results/gait_fronts; C=$F/fast_candidates
     python front_candidates.py write $F/endurance_steer_mjx_20s_128x4_g16.json \\
         --min-speed 0.35 --min-endurance 10 --seed 27 --out $C
@@ -34,16 +38,22 @@ from eaco_jax.problems.gait import param_names
 def write(fronts: Path, min_speed: float, min_endurance: float, seed: int, out: Path) -> list:
     """One gait record per qualifying front point; returns their rows."""
     d = json.loads(fronts.read_text())
-    if d["problem"]["second"] != "endurance":
-        raise SystemExit(f"{fronts}: a speed x endurance front is needed")
+    second = d["problem"]["second"]
+    if second not in ("endurance", "cot"):
+        raise SystemExit(f"{fronts}: a speed x endurance or speed x CoT front is needed")
     names = param_names(load_robot("nao"))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for arm, a in d["arms"].items():
         for s in a["seeds"]:
-            for f, x in zip(s["rescored_front"], s["rescored_front_x"], strict=True):
-                speed, endurance = -f[0], -f[1]
-                if speed < min_speed or endurance < min_endurance:
+            points = list(zip(s["rescored_front"], s["rescored_front_x"], strict=True))
+            if second == "cot":  # per front, the most economical point past min_speed
+                fast = [p for p in points if -p[0][0] >= min_speed]
+                points = [min(fast, key=lambda p: p[0][1])] if fast else []
+            for f, x in points:
+                speed = -f[0]
+                endurance = -f[1] if second == "endurance" else None
+                if speed < min_speed or (endurance is not None and endurance < min_endurance):
                     continue
                 name = f"c{len(rows):02d}"
                 rec = {"robot": "nao", "backend": d["problem"]["backend"],
@@ -53,14 +63,17 @@ def write(fronts: Path, min_speed: float, min_endurance: float, seed: int, out: 
                        "params": dict(zip(names, x, strict=True)), "vector": list(x),
                        "front": {"file": str(fronts), "arm": arm, "run_seed": s["seed"],
                                  "speed": speed, "endurance_min": endurance,
+                                 "cot": f[1] if second == "cot" else None,
                                  "scored_on": d["seeds"]["scoring"]}}
                 if Path(d["problem"]["init"]).is_file():  # the gait the front was searched around
                     rec["init"] = d["problem"]["init"]
                 (out / f"{name}.json").write_text(json.dumps(rec, indent=1))
                 rows.append({"name": name, "arm": arm, "run_seed": s["seed"],
-                             "speed": speed, "endurance_min": endurance})
+                             "speed": speed, "endurance_min": endurance,
+                             "cot": f[1] if second == "cot" else None})
     (out / "candidates.json").write_text(json.dumps(
-        {"fronts": str(fronts), "min_speed": min_speed, "min_endurance": min_endurance,
+        {"fronts": str(fronts), "second": second, "min_speed": min_speed,
+         "min_endurance": min_endurance if second == "endurance" else None,
          "seed": seed, "candidates": rows}, indent=1))
     return rows
 

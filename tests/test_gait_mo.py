@@ -167,3 +167,29 @@ def test_front_candidates_keep_the_threshold_and_pick_by_the_fixed_rule(monkeypa
     table("c04", 64, 0, 0.2, stream="test")
     with pytest.raises(SystemExit, match="selection-stream"):
         fc.pick(tmp_path / "c")
+
+
+def test_front_candidates_take_the_most_economical_fast_point_of_each_cot_front(monkeypatch,
+                                                                               tmp_path):
+    """From a speed x CoT front ``write`` takes, per arm and seed, the one point at or past the
+    speed bar with the lowest CoT (a front with none gives nothing)."""
+    import json
+
+    monkeypatch.syspath_prepend(str(ROOT / "experiments"))
+    import front_candidates as fc
+
+    x = [[0.1] * 14, [0.2] * 14, [0.3] * 14, [0.4] * 14]
+    front = [[-0.50, 1.40], [-0.40, 1.20], [-0.36, 1.15], [-0.30, 1.05]]
+    fronts = {"problem": {"second": "cot", "init": str(tmp_path / "none.json"),
+                          "backend": "mjx", "horizon_s": 20.0, "steering": None,
+                          "target_noise": 0.0004},
+              "seeds": {"scoring": "selection"},
+              "arms": {"colony": {"seeds": [{"seed": 3, "rescored_front": front,
+                                             "rescored_front_x": x}]},
+                       "nsga2": {"seeds": [{"seed": 3, "rescored_front": [[-0.2, 1.0]],
+                                            "rescored_front_x": [x[0]]}]}}}
+    (tmp_path / "f.json").write_text(json.dumps(fronts))
+    rows = fc.write(tmp_path / "f.json", 0.35, 10.0, 28, tmp_path / "c")
+    assert [(r["arm"], r["speed"], r["cot"]) for r in rows] == [("colony", 0.36, 1.15)]
+    rec = json.loads((tmp_path / "c" / "c00.json").read_text())
+    assert rec["vector"] == x[2] and rec["front"]["endurance_min"] is None
