@@ -117,9 +117,13 @@ def run_ours(problem, variation: str, grid, ants: int, iterations: int, seeds: l
 
 
 def run_qdax(qd, problem, grid, ants: int, iterations: int, seeds: list[int],
-             params: MAPElitesParams) -> tuple[list[dict], list[dict]]:
+             params: MAPElitesParams, vmapped: bool = False) -> tuple[list[dict], list[dict]]:
     """QDax's MAP-Elites per seed (one compiled scan, reused): genotypes in [0, 1]^n, the
-    problem's evaluate on the box point; per seed the archive's metrics (ours and QDax's)."""
+    problem's evaluate on the box point; per seed the archive's metrics (ours and QDax's).
+    ``vmapped``: all seeds in one vmapped call, as ``minimize`` runs ours (a GPU would
+    otherwise run QDax's seeds one small batch at a time); the same keys, so the same runs."""
+    if vmapped and len(seeds) > 1 and hasattr(problem, "for_rows"):
+        problem = problem.for_rows(len(seeds))
     lo, hi = problem.lower, problem.upper
     stochastic = getattr(problem, "stochastic", False)
 
@@ -154,10 +158,15 @@ def run_qdax(qd, problem, grid, ants: int, iterations: int, seeds: list[int],
 
     rows, reps = [], []
     t0 = time.perf_counter()
-    for seed in seeds:
-        # the worlds come from the optimisation stream of the problem's seed, folded with
-        # QDax's per-call key (problem.evaluate), as the driver's key picks ours
-        rep = run(jax.random.PRNGKey(seed))
+    # the worlds come from the optimisation stream of the problem's seed, folded with QDax's
+    # per-call key (problem.evaluate), as the driver's key picks ours
+    if vmapped and len(seeds) > 1:
+        keys = jnp.stack([jax.random.PRNGKey(seed) for seed in seeds])
+        batch = jax.jit(jax.vmap(run))(keys)
+        per_seed = [jax.tree.map(lambda a, i=i: a[i], batch) for i in range(len(seeds))]
+    else:
+        per_seed = (run(jax.random.PRNGKey(seed)) for seed in seeds)
+    for seed, rep in zip(seeds, per_seed, strict=True):
         fit = np.asarray(rep.fitnesses).reshape(-1)
         cost = np.where(np.isfinite(fit), -fit, np.inf)
         m = {k: float(v) for k, v in archive_metrics(jnp.asarray(cost), offset).items()}
@@ -210,7 +219,7 @@ def part_toy(args, qd, params) -> dict:
         rows[arm], _, _ = run_ours(prob, arm, grid, args.toy_ants, args.toy_iterations,
                                    args.seeds, params)
     rows["qdax"], _ = run_qdax(qd, prob, grid, args.toy_ants, args.toy_iterations, args.seeds,
-                               params)
+                               params, vmapped=args.qdax_vmap)
     cmp = compare(rows)
     print(table(f"toy: rastrigin-proj {args.toy_dim}-D, grid {grid}, "
                 f"{args.toy_ants * args.toy_iterations} evaluations, seeds {args.seeds}",
@@ -268,7 +277,7 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
         t0 = time.perf_counter()
         if arm == "qdax":
             rows[arm], archives[arm] = run_qdax(qd, prob, grid, args.ants, args.iterations,
-                                                args.seeds, params)
+                                                args.seeds, params, vmapped=args.qdax_vmap)
         else:
             rows[arm], state, s = run_ours(prob, arm, grid, args.ants, args.iterations,
                                            args.seeds, params)
@@ -420,6 +429,9 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=24)
     ap.add_argument("--gait-arms", nargs="+", default=["eaco", "qdax"],
                     choices=("eaco", "isoline", "qdax"))
+    ap.add_argument("--qdax-vmap", action="store_true",
+                    help="run QDax's seeds as one vmapped call, as ours run (for a GPU: its "
+                    "seeds one at a time leave it mostly idle)")
     ap.add_argument("--constrained", action="store_true",
                     help="fill the library under the motor constraints (endurance, current, "
                     "slip, falls; needs a horizon long enough for them: see docs)")
