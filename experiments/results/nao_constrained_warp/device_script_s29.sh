@@ -27,6 +27,10 @@
 #          narwhals, 10 MB; QDax's MAP-Elites path imports flax, optax, chex, brax and scipy, which
 #          the device or .wx has; untried on the device). docs/gait_library.md says why a CPU
 #          run cannot judge these gaits.
+# As run in session 29 (one H100): part 0 0; part 0 1 2 3; part 0 4 5 6; overhead 330 (the
+# gait copy above was typed into that call); fronts 580 cot;
+# EACO_WARP_GRAPH_MODE=warp_staged library 385 (eaco alone, 32 test worlds: a first call with
+# QDax's arm and 64 test worlds ran out of its 570 s and is not kept).
 T0=$(date +%s); R=$(pwd); P=$1; STOP=${2:-560}; shift 2
 left() { echo $(( STOP - ( $(date +%s) - T0 ) )); }
 if [ ! -d /tmp/eaco/eaco_jax ]; then
@@ -101,14 +105,15 @@ if [ "$P" = walks ]; then  # walks IMPL
   for f in /tmp/wlogs_$I/*.txt; do echo "$(basename $f): $(grep -m1 'worlds succeed' $f) overflow $(grep -c overflow $f)"; done
   tar czf $OUT/walks_$I.tgz -C /tmp ws_$I wlogs_$I; save
 fi
+mkdir -p /tmp/src/experiments/results/nao_constrained_warp/flat_r32 && cp $F /tmp/src/experiments/results/nao_constrained_warp/flat_r32/
 if [ "$P" = overhead ]; then
   for gm in warp warp_staged; do
-    (cd /tmp/src/experiments && timeout $(( $(left) - 10 )) python3 fronts_overhead.py --init $F --backend mjx --impl warp --ants 128 --worlds 4 --generations 4 --seeds 10 --horizon 20 --graph-mode $gm --out /tmp/rep/overhead_warp_$gm.json > /tmp/rep/overhead_warp_$gm.log 2>&1)
+    (cd /tmp/src/experiments && timeout $(( $(left) - 10 )) python3 fronts_overhead.py --backend mjx --impl warp --ants 128 --worlds 4 --generations 4 --seeds 10 --horizon 20 --graph-mode $gm --out /tmp/rep/overhead_warp_$gm.json > /tmp/rep/overhead_warp_$gm.log 2>&1)
     echo "overhead $gm rc $? after $(( $(date +%s) - T0 )) s"; grep -v -e overflow -e "To disable" /tmp/rep/overhead_warp_$gm.log | tail -3; save
   done
 fi
 if [ "$P" = library ]; then
   python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/qdsite $R/.wq/*.whl || exit 1
-  (cd /tmp/src/experiments && PYTHONPATH=$PYTHONPATH:/tmp/qdsite timeout $(( $(left) - 10 )) python3 gait_library.py --parts gait --gait-arms eaco qdax --backend mjx --constrained --init $F --target-noise 0.000443 --horizon 20 --worlds 4 --ants 128 --iterations 12 --test-worlds 64 --validate-chunk 256 --seeds 0-9 --out /tmp/rep/library > /tmp/rep/library.log 2>&1)
+  (cd /tmp/src/experiments && PYTHONPATH=$PYTHONPATH:/tmp/qdsite timeout $(( $(left) - 10 )) python3 gait_library.py --parts gait --gait-arms eaco --backend mjx --constrained --init $F --target-noise 0.000443 --horizon 20 --worlds 4 --ants 128 --iterations 12 --test-worlds 32 --validate-chunk 256 --seeds 0-9 --out /tmp/rep/library > /tmp/rep/library.log 2>&1)
   echo "library rc $? after $(( $(date +%s) - T0 )) s"; grep -v -e overflow -e "To disable" /tmp/rep/library.log | tail -12; save
 fi
