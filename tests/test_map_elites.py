@@ -323,3 +323,22 @@ def test_library_box_narrows_around_a_gait_but_keeps_the_free_commands(monkeypat
     args.free = ["stride"]
     with pytest.raises(SystemExit, match="stride"):
         gl.library_problem(args)
+
+
+def test_library_experiment_runs_one_seed_as_it_runs_several(monkeypatch):
+    """experiments/gait_library.py's ``run_ours``: ``minimize`` returns one seed's state without
+    the seed axis, and the experiment still gives one row and a state with that axis (the
+    validation indexes it by seed)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    monkeypatch.syspath_prepend(str(root / "experiments"))
+    import gait_library as gl
+
+    prob = gl.rastrigin_proj(4)
+    rows, state, _ = gl.run_ours(prob, "eaco", (4, 4), 8, 3, [5], gl.MAPElitesParams())
+    assert [r["seed"] for r in rows] == [5] and rows[0]["evaluations"] == 24
+    assert np.asarray(state.archive_cost).shape == (1, 16)
+    two, state2, _ = gl.run_ours(prob, "eaco", (4, 4), 8, 3, [5, 6], gl.MAPElitesParams())
+    np.testing.assert_array_equal(np.asarray(state.archive_cost)[0],
+                                  np.asarray(state2.archive_cost)[0])
