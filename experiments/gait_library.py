@@ -298,7 +298,7 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
     # validation on the TEST stream: every filled cell of every run
     t0 = time.perf_counter()
     per_cell: dict[str, dict] = {}
-    library = None
+    libraries: list[dict] = []
     for arm, archs in archives.items():
         falls = np.full((len(args.seeds),) + grid, np.nan)
         speed = np.full((len(args.seeds),) + grid, np.nan)
@@ -322,8 +322,8 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
             rows[arm][i]["test_cells_never_fell"] = int(np.sum(v["fall_rate"] == 0))
             if prob.constrained:
                 rows[arm][i]["test_cells_feasible"] = int(np.sum(v["violation"] <= 0))
-            if arm == "eaco" and i == 0:
-                library = {"seed": seed, "cells": [
+            if arm == "eaco":  # every run's library, for a controller to draw on
+                libraries.append({"seed": seed, "cells": [
                     {"coords": home[j].tolist(), "params": prob.gait.params_dict(a["x"][f]),
                      "fitness": float(-a["cost"][f]),
                      "search_descriptor": a["descriptor"][f].tolist(),
@@ -334,7 +334,7 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
                      **({"test_violation": float(v["violation"][j]),
                          **{f"test_{k}_worst": float(v[f"{k}_worst"][j])
                             for k in prob.constraint_names}} if prob.constrained else {})}
-                    for j, f in enumerate(filled)]}
+                    for j, f in enumerate(filled)]})
         with np.errstate(all="ignore"):
             pooled = np.nanmean(falls, axis=0)
             filled_by = np.sum(np.isfinite(falls), axis=0)
@@ -370,7 +370,7 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
            "evaluations": args.ants * args.iterations,
            "rollouts_per_run": args.ants * args.iterations * max(args.worlds, 1),
            "rows": rows, "summary": cmp, "per_cell": per_cell, "seconds": timings}
-    return out, library
+    return out, libraries
 
 
 def plot_maps(gait: dict, path: Path) -> None:
@@ -451,13 +451,14 @@ def main() -> None:
     args.test_worlds *= args.device_scale
     params = MAPElitesParams(iso_sigma=args.iso_sigma, line_sigma=args.line_sigma,
                              rho=args.rho)
-    qd = import_qdax()
+    # QDax only where an arm needs it (the toy part always runs it)
+    qd = import_qdax() if "toy" in args.parts or "qdax" in args.gait_arms else None
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     doc = {"date": datetime.date.today().isoformat(),
            "command": "python experiments/gait_library.py " + " ".join(sys.argv[1:]),
            "versions": {"jax": jax.__version__, "eaco_jax": ea.__version__,
-                        "qdax": qd["version"]},
+                        "qdax": qd["version"] if qd else None},
            "report_seeds": args.seeds, "seed_role": "optimisation seeds (searches); the "
            "gait part's validation worlds are the test stream of each seed",
            "params": {"rho": args.rho, "iso_sigma": args.iso_sigma,
@@ -465,10 +466,10 @@ def main() -> None:
     if "toy" in args.parts:
         doc["toy"] = part_toy(args, qd, params)
     if "gait" in args.parts:
-        doc["gait"], library = part_gait(args, qd, params)
+        doc["gait"], libraries = part_gait(args, qd, params)
         plot_maps(doc["gait"], args.out / "gait_library_map.png")
-        if library is not None:
-            (args.out / "library_seed0.json").write_text(json.dumps(
+        for library in libraries:  # library_seed<run seed>.json: cells measured on its tests
+            (args.out / f"library_seed{library['seed']}.json").write_text(json.dumps(
                 {"problem": doc["gait"]["problem"], "grid": doc["gait"]["grid"],
                  "speed_range": doc["gait"]["speed_range"],
                  "yaw_range": doc["gait"]["yaw_range"], "horizon_s": args.horizon,
