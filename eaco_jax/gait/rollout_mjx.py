@@ -335,6 +335,12 @@ def mjx_rollout(
                 return dctrl[:, t]
             return delayed_at(dctrl, t, worlds).reshape(nb, nu)
 
+        rates = None
+        if steer.steering.track_turn:  # each ant's commanded rate, in each of its worlds
+            if steer.rates is None:
+                raise ValueError("steering.track_turn needs steer.rates, one per gait")
+            rates = jnp.repeat(jnp.asarray(steer.rates, jnp.float32), r)
+
     mlim = mo.motor_model(spec) if limits else None
     mp0 = None if mp is None else ql.MotorParams(*(x[:, 0] for x in mp))
 
@@ -355,8 +361,9 @@ def mjx_rollout(
         else:
             state, u_prev_end = sc
             c_old = state.c_prev
+            ref = None if rates is None else st.turn_reference(rates, t, spec.control_dt)
             state, c = st.update(state, root_trace(d.qpos), start_xy, steer.direction,
-                                 steer.steering, spec.control_dt)
+                                 steer.steering, spec.control_dt, ref=ref)
             c_eff = st.delayed(c, c_old, lat)[:, None]
             if interpolate:  # the command moves on from where the last step's ended
                 u, tn = u_prev_end, jnp.minimum(t + 1, n_steps - 1)

@@ -245,6 +245,11 @@ def native_rollout(
         if dctrl.shape != controls.shape:
             raise ValueError(f"steer.dcontrols must be {controls.shape}, got {dctrl.shape}")
         lat = np.zeros(nb, np.int64) if latency is None else np.asarray(latency).reshape(nb)
+        rates = None
+        if steer.steering.track_turn:
+            if steer.rates is None or np.size(steer.rates) != nb:
+                raise ValueError(f"steering.track_turn needs steer.rates, one per rollout ({nb})")
+            rates = np.asarray(steer.rates, np.float64).reshape(nb)
         sstate = st.start_state(nb, np)
         u_prev_end = controls[:, 0]
     trace = np.empty((nb, steps + 1, TRACE_COLUMNS), np.float32)
@@ -278,8 +283,9 @@ def native_rollout(
             ctrl = physics_controls(controls, start, stop, k, interpolate)
         else:
             c_old = sstate.c_prev
+            ref = None if rates is None else st.turn_reference(rates, start, spec.control_dt)
             sstate, c = st.update(sstate, root_trace(state[:, 1:8]), trace[:, 0, :2],
-                                  steer.direction, steer.steering, spec.control_dt, np)
+                                  steer.direction, steer.steering, spec.control_dt, np, ref)
             c_eff = st.delayed(c, c_old, lat)[:, None].astype(np.float64)
             if interpolate:
                 tn = min(start + 1, steps - 1)
@@ -511,6 +517,8 @@ def native_rollout_callback(
             per_w = jax.vmap(lambda s: delayed_at(d, s, worlds), out_axes=-2)(steps)
             args["dctrl"] = per_w.reshape(lead + (a * r, t, nu))  # from (..., A, R, T, nu)
             args["lat"] = tile(worlds.latency)
+        if steer.steering.track_turn:  # each ant's commanded rate, in each of its worlds
+            args["rates"] = jnp.repeat(jnp.asarray(steer.rates, jnp.float32), r, axis=-1)
     nb = a * r
     shapes: dict[str, jax.ShapeDtypeStruct] = {
         "trace": jax.ShapeDtypeStruct(lead + (nb, t + 1, TRACE_COLUMNS), jnp.float32)}
@@ -533,7 +541,8 @@ def native_rollout_callback(
             opts = dict(models=models, motor=motor, qpos_init=flat["qinit"].astype(np.float64),
                         push=flat["push"])
         if steer is not None:
-            opts["steer"] = st.SteerInputs(flat["dctrl"], steer.steering, steer.direction)
+            opts["steer"] = st.SteerInputs(flat["dctrl"], steer.steering, steer.direction,
+                                           flat.get("rates"))
             opts["latency"] = flat["lat"]
         out = native_rollout(flat["ctrl"], spec, slope_deg, accuracy, quality=quality,
                              trace_every=trace_every, limits=limits, interpolate=interpolate,

@@ -150,9 +150,11 @@ class GaitProblem(Box):
         targets."""
         if self.steering is None:
             return self.controls(solutions), None
-        u, d = turn_sensitivity(self.controls, solutions, PARAM_NAMES.index("turn_rate"))
+        turn = PARAM_NAMES.index("turn_rate")
+        u, d = turn_sensitivity(self.controls, solutions, turn)
+        rates = solutions[:, turn] if self.steering.track_turn else None
         return u, SteerInputs(couple_controls(d, self.spec), self.steering,
-                              math.radians(self.direction_deg))
+                              math.radians(self.direction_deg), rates)
 
     def trace(self, solutions: jax.Array) -> jax.Array:
         """Torso traces ``(m, n_steps + 1, 6)`` of gaits ``(m, dim)`` in the nominal world."""
@@ -664,8 +666,9 @@ def make_gait_problem(
         if spec.gait != "biped":
             raise ProblemError(f"steering needs a biped's walk engine (a turn rate); robot "
                                f"{spec.name!r} is a {spec.gait}: drop steering")
-        if turn is not None:
-            raise ProblemError("a turning gait has no heading to hold: drop steering or turn")
+        if turn is not None and not steering.track_turn:
+            raise ProblemError("a turning gait has no heading to hold: drop steering or turn, "
+                               "or steer with Steering(track_turn=True)")
     if not (isinstance(margin, int | float) and math.isfinite(margin) and 0 <= margin < 1):
         raise ProblemError(f"margin must be a number in [0, 1), got {margin!r}")
     if margin and not constrained:

@@ -38,6 +38,7 @@ from flax import struct
 
 from eaco_jax.gait import constraints as gc
 from eaco_jax.gait import quality as ql
+from eaco_jax.gait.steer import Steering
 from eaco_jax.gait.worlds import RobustConfig, optimisation_key, stream_key
 from eaco_jax.problems.base import ProblemError
 from eaco_jax.problems.gait import GaitProblem, make_gait_problem
@@ -171,19 +172,24 @@ def make_gait_library_problem(
     impl: str = "auto",
     robust: RobustConfig | None = None,
     constrained: bool = False,
+    steering: Steering | None = None,
 ) -> GaitLibraryProblem:
     """The gait-library problem of ``robot`` (a biped: the walk engine's direction and turn
     rate give the descriptors' range): ``horizon`` seconds per rollout, ``worlds`` randomised
     worlds per evaluation from the optimisation stream of ``seed`` (0: the nominal world only;
     ``robust`` overrides both with a full :class:`RobustConfig`); descriptor ranges for the
     grid (``lateral_range`` adds the lateral speed as a third descriptor); ``constrained``
-    fills it under the motor constraints (see the module docstring)."""
+    fills it under the motor constraints (see the module docstring); ``steering`` closes each
+    cell's heading loop (it must track the cell's turn: ``Steering(track_turn=True)``)."""
     if not isinstance(worlds, int) or worlds < 0:
         raise ProblemError(f"worlds must be an int >= 0, got {worlds!r}")
     if robust is None and worlds > 0:
         robust = RobustConfig(R=worlds, aggregate="mean", seed=int(seed))
+    if steering is not None and not (isinstance(steering, Steering) and steering.track_turn):
+        raise ProblemError("a library cell asks for its turn rate: steer it with "
+                           "Steering(track_turn=True), or drop steering")
     gait = make_gait_problem(robot, backend=backend, horizon=horizon, robust=robust, impl=impl,
-                             constrained=constrained)
+                             constrained=constrained, steering=steering)
     if gait.spec.gait != "biped":
         raise ProblemError(f"the gait library needs a biped's walk engine (direction and turn "
                            f"rate); robot {gait.spec.name!r} is a {gait.spec.gait}: use a "
