@@ -56,6 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import eaco_jax as ea
+from eaco_jax.gait.steer import Steering
 from eaco_jax.gait.worlds import RobustConfig
 from eaco_jax.problems.gait_library import make_gait_library_problem, validate
 from eaco_jax.problems.qd import rastrigin_proj
@@ -247,7 +248,8 @@ def library_problem(args):
     prob = make_gait_library_problem(
         backend=args.backend, horizon=args.horizon, worlds=args.worlds, seed=0,
         speed_range=tuple(args.speed_range), yaw_range=tuple(args.yaw_range),
-        constrained=args.constrained, robust=robust)
+        constrained=args.constrained, robust=robust,
+        steering=Steering(track_turn=True) if getattr(args, "track_turn", False) else None)
     if args.init is None:
         return prob
     from eaco_jax.runs.gait import narrowed_around
@@ -361,6 +363,8 @@ def part_gait(args, qd, params) -> tuple[dict, dict]:
                 [r.get("test_cells_feasible", np.nan) for r in rows[arm]])
     out = {"problem": prob.name, "backend": prob.gait.backend, "horizon_s": args.horizon,
            "constrained": prob.constrained, "init": None if args.init is None else str(args.init),
+           "steering": (prob.gait.steering.record() if prob.gait.steering is not None
+                        else None),
            "target_noise": (prob.gait.robust.target_noise if prob.gait.robust is not None
                             else None),
            "free": list(args.free) if args.init is not None else None,
@@ -429,6 +433,9 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=24)
     ap.add_argument("--gait-arms", nargs="+", default=["eaco", "qdax"],
                     choices=("eaco", "isoline", "qdax"))
+    ap.add_argument("--track-turn", action="store_true",
+                    help="close each cell's heading loop on its commanded turn rate "
+                    "(Steering(track_turn=True); experiments/track_turn.py measures it)")
     ap.add_argument("--qdax-vmap", action="store_true",
                     help="run QDax's seeds as one vmapped call, as ours run (for a GPU: its "
                     "seeds one at a time leave it mostly idle)")
