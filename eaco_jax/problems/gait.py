@@ -667,8 +667,9 @@ def make_gait_problem(
             raise ProblemError(f"steering needs a biped's walk engine (a turn rate); robot "
                                f"{spec.name!r} is a {spec.gait}: drop steering")
         if turn is not None and not steering.track_turn:
-            raise ProblemError("a turning gait has no heading to hold: drop steering or turn, "
-                               "or steer with Steering(track_turn=True)")
+            raise ProblemError("a turning gait has no heading to hold: drop steering (--steer) "
+                               "or turn, or in the API track its own turn with "
+                               "Steering(track_turn=True)")
     if not (isinstance(margin, int | float) and math.isfinite(margin) and 0 <= margin < 1):
         raise ProblemError(f"margin must be a number in [0, 1), got {margin!r}")
     if margin and not constrained:
