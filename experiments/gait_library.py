@@ -123,7 +123,8 @@ def run_qdax(qd, problem, grid, ants: int, iterations: int, seeds: list[int],
     problem's evaluate on the box point; per seed the archive's metrics (ours and QDax's).
     ``vmapped``: all seeds in one vmapped call, as ``minimize`` runs ours (a GPU would
     otherwise run QDax's seeds one small batch at a time); the same keys, so the same runs."""
-    if vmapped and len(seeds) > 1 and hasattr(problem, "for_rows"):
+    vmapped = vmapped and len(seeds) > 1
+    if vmapped and hasattr(problem, "for_rows"):
         problem = problem.for_rows(len(seeds))
     lo, hi = problem.lower, problem.upper
     stochastic = getattr(problem, "stochastic", False)
@@ -161,7 +162,7 @@ def run_qdax(qd, problem, grid, ants: int, iterations: int, seeds: list[int],
     t0 = time.perf_counter()
     # the worlds come from the optimisation stream of the problem's seed, folded with QDax's
     # per-call key (problem.evaluate), as the driver's key picks ours
-    if vmapped and len(seeds) > 1:
+    if vmapped:
         keys = jnp.stack([jax.random.PRNGKey(seed) for seed in seeds])
         batch = jax.jit(jax.vmap(run))(keys)
         per_seed = [jax.tree.map(lambda a, i=i: a[i], batch) for i in range(len(seeds))]
@@ -249,7 +250,7 @@ def library_problem(args):
         backend=args.backend, horizon=args.horizon, worlds=args.worlds, seed=0,
         speed_range=tuple(args.speed_range), yaw_range=tuple(args.yaw_range),
         constrained=args.constrained, robust=robust,
-        steering=Steering(track_turn=True) if getattr(args, "track_turn", False) else None)
+        steering=Steering(track_turn=True) if args.track_turn else None)
     if args.init is None:
         return prob
     from eaco_jax.runs.gait import narrowed_around

@@ -306,7 +306,8 @@ def test_library_box_narrows_around_a_gait_but_keeps_the_free_commands(monkeypat
     init = root / "experiments/results/nao_constrained_warp/flat_r32/best_gait.json"
     args = argparse.Namespace(backend="native", horizon=1.0, worlds=1, speed_range=[-0.1, 0.3],
                               yaw_range=[-30.0, 30.0], constrained=True, init=init,
-                              free=["step_length", "turn_rate"], target_noise=0.000443)
+                              free=["step_length", "turn_rate"], target_noise=0.000443,
+                              track_turn=False)
     full = gl.make_gait_library_problem(backend="native", horizon=1.0, worlds=1)
     prob = gl.library_problem(args)
     assert prob.constrained and prob.gait.robust.target_noise == 0.000443
