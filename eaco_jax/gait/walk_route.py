@@ -15,6 +15,13 @@ and a path-following controller steers it along the route's polyline, one step c
   of gait. Above ``turn_deg`` (by default 180: never) it would turn on the spot with the
   library's left or right turning gait until the error is below ``resume_deg`` or has
   changed sign (an overshoot hands over to the forward gait, never to the opposite turn).
+* **Library cells** (a gait library with ``forward_cells``, e.g. ``nao_library`` drawn from
+  the MAP-Elites archive): the forward gait is itself chosen each step cycle among the cells,
+  the fastest whose measured speed is at most the step fraction times the fastest cell's
+  (:func:`pick_cell`), instead of one gait's step being shortened, and steered as the forward
+  gait is. (Steering a cell by the heading error less its measured travel direction, which
+  is up to 30 degrees off its torso's heading for some cells, made the robot fall in its first
+  seconds on the tuning scenes: claim ``walk-library-travel-steer-falls``.)
 * **Gait changes**: a new choice is made at the start of each step cycle; the walk engine's
   parameters then blend linearly from the old ones to the new over ``blend_cycles`` cycles
   while the gait phase runs on continuously (the engine is evaluated at the phase, not at the
@@ -109,9 +116,48 @@ class WalkGaits:
     turn_right: np.ndarray
     source: str = ""
     planning: dict[str, Any] | None = None  # speed_mps, yaw_rate_deg_s a planner should price
+    #: forward cells ``(K, P)``, slowest first, the controller picks among (None: one forward
+    #: gait whose step it shortens), and their measured forward speeds [m/s] ``(K,)``
+    cells: np.ndarray | None = dataclasses.field(default=None, compare=False)
+    cell_speed: np.ndarray | None = dataclasses.field(default=None, compare=False)
 
     def of(self, mode: str) -> np.ndarray:
         return np.asarray(getattr(self, mode), np.float64)
+
+    @property
+    def n_cells(self) -> int:
+        return 0 if self.cells is None else len(self.cells)
+
+
+def pick_cell(gaits: WalkGaits, step: float) -> int:
+    """The forward cell for a step fraction ``step`` (in (0, 1]): the fastest whose measured
+    speed is at most ``step`` times the fastest cell's, the slowest if none is."""
+    s = gaits.cell_speed
+    return max(0, int(np.sum(s <= step * s[-1] + 1e-6)) - 1)
+
+
+def _forward_cells(data: dict, path: Path) -> tuple[np.ndarray, ...] | tuple[None, ...]:
+    """``(cells, speed)`` of a library file's ``forward_cells`` (sorted by speed), or Nones
+    where it has none."""
+    entries = data.get("forward_cells")
+    if entries is None:
+        return None, None
+    try:
+        vecs = [np.asarray(e["vector"], np.float64) for e in entries]
+        speed = np.array([float(e["speed_mps"]) for e in entries])
+    except (KeyError, TypeError, ValueError) as err:
+        raise ConfigError(f"{path}: each of forward_cells needs vector and speed_mps "
+                          f"({type(err).__name__}: {err})") from None
+    if not vecs or not (np.all(np.isfinite(speed)) and np.all(speed > 0)):
+        raise ConfigError(f"{path}: forward_cells needs at least one cell, each with "
+                          f"speed_mps > 0")
+    for i, v in enumerate(vecs):
+        try:
+            gait_vector(v, len(PARAM_NAMES), f"{path}: forward_cells[{i}].vector")
+        except ProblemError as err:
+            raise ConfigError(f"{err} ({', '.join(PARAM_NAMES)})") from None
+    order = np.argsort(speed, kind="stable")
+    return np.stack(vecs)[order], speed[order]
 
 
 def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
@@ -142,8 +188,9 @@ def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
             ok = False
         if not ok:
             raise ConfigError(f"{path}: planning needs speed_mps and yaw_rate_deg_s > 0")
+    cells, speed = _forward_cells(data, path)
     return WalkGaits(vecs[FORWARD], vecs[LEFT], vecs[RIGHT], str(data.get("source", "")),
-                     planning)
+                     planning, cells, speed)
 
 
 # --------------------------------------------------------------------------- controller
@@ -205,11 +252,13 @@ class Controller:
 @dataclasses.dataclass(frozen=True)
 class Choice:
     """One step cycle's gait: the mode, the forward gait's ``turn_rate`` [rad/s] and the
-    fraction of its step length (both unused while turning on the spot)."""
+    fraction of its step length (both unused while turning on the spot); ``cell``: the
+    library's forward cell walked instead of the shortened forward gait (-1: none)."""
 
     mode: str
     steer: float = 0.0
     step: float = 1.0
+    cell: int = -1
 
 
 def wrap(angle: float) -> float:
@@ -284,9 +333,21 @@ def near_goal(ctrl: Controller) -> Controller:
     return dataclasses.replace(ctrl, turn_deg=min(ctrl.turn_deg, ctrl.goal_turn_deg))
 
 
+def with_cell(choice: Choice, gaits: WalkGaits) -> Choice:
+    """A forward choice on a library with cells: the cell for its step fraction
+    (:func:`pick_cell`), its steering unchanged."""
+    if choice.mode != FORWARD or gaits.cells is None:
+        return choice
+    return dataclasses.replace(choice, cell=pick_cell(gaits, choice.step))
+
+
 def gait_params(gaits: WalkGaits, choice: Choice) -> np.ndarray:
     """The walk-engine parameters of a choice: a library gait, the forward one steered and
     its step length scaled."""
+    if choice.mode == FORWARD and choice.cell >= 0:
+        params = np.asarray(gaits.cells[choice.cell], np.float64).copy()
+        params[TURN] = choice.steer
+        return params
     params = gaits.of(choice.mode).copy()
     if choice.mode == FORWARD:
         params[TURN] = choice.steer
@@ -479,6 +540,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
     history: list[np.ndarray] = []
     rows: list[list[float]] = []
     modes_time = {m_: 0.0 for m_ in MODES}
+    cells_time = np.zeros(gaits.n_cells)
     closest, closest_obstacle = distmax, -1
     contact_time, contact_obstacle = None, -1
     fell_time = reach_time = None
@@ -499,6 +561,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
             if choice.mode == FORWARD and ctrl.bend_distance > 0:
                 choice = dataclasses.replace(
                     choice, step=min(choice.step, bend_cap(route, seg, pos, ctrl)))
+            choice = with_cell(choice, gaits)
             if k * dt < RAMP_TIME and p_new is not None:
                 choice = last  # no switch during the start-up
             last = choice
@@ -544,6 +607,8 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
             peak_current = max(peak_current, float(np.max(
                 np.abs(mo.current(tau, qd, mm, np)) / mm.i_limit)))
         modes_time[mode] += dt
+        if last.cell >= 0 and mode == FORWARD:
+            cells_time[last.cell] += dt
         t = (k + 1) * dt
         pos = data.qpos[:2]
         yaws.append(_yaw(data.qpos[3:7]))
@@ -589,6 +654,7 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
         "walked_length_m": _length(np.asarray([r[1:3] for r in rows])),
         "mode_seconds": {k_: round(v, 3) for k_, v in modes_time.items()},
         "gait_switches": switches,
+        "cell_seconds": [round(float(v), 3) for v in cells_time] if gaits.n_cells else None,
         "peak_current_frac": peak_current if mm is not None else None,
         "trajectory_columns": ["t", "x", "y", "yaw", "mode"],
         "trajectory": rows,
@@ -655,5 +721,5 @@ def _length(xy: np.ndarray) -> float:
 
 __all__ = ["FORWARD", "LEFT", "MODES", "MOTORS", "RIGHT", "Choice", "Controller", "WalkGaits",
            "WorldInputs", "choose", "gait_params", "ground_height", "load_walk_gaits",
-           "motor_physics", "polygon_distance", "sample_walk_worlds", "start_heading", "track",
-           "walk", "wrap"]
+           "motor_physics", "pick_cell", "polygon_distance", "sample_walk_worlds",
+           "start_heading", "track", "walk", "with_cell", "wrap"]

@@ -359,6 +359,12 @@ def _choose(error, mode, c: wr.Controller):
     return new, jnp.where(fwd, steer, 0.0), jnp.where(fwd, step, 1.0)
 
 
+def _pick_cell(speed, stp):
+    """:func:`~eaco_jax.gait.walk_route.pick_cell` in JAX (``speed``: the cells' speeds,
+    slowest first)."""
+    return jnp.maximum(jnp.sum(speed <= stp * speed[-1] + 1e-6) - 1, 0).astype(jnp.int32)
+
+
 def _step_fraction(error, c: wr.Controller):
     """:func:`~eaco_jax.gait.walk_route.step_fraction` in JAX (``error`` >= 0, rad)."""
     u = (jnp.degrees(error) - c.slow_deg) / (c.stop_deg - c.slow_deg)
@@ -590,17 +596,20 @@ class _Static:
     batch: int
     lat_max: int
     interpolate: bool = False
+    cells: tuple | None = None  # (cells (K, P), speed (K,)) float32, or None
 
     @staticmethod
     def of(scene, route, spec, gaits, ctrl, model, impl, limits, record_every, distmax,
            n_steps, batch, lat_max, interpolate=False) -> _Static:
         lib = np.stack([gaits.of(m) for m in wr.MODES]).astype(np.float32)
+        cells = None if gaits.cells is None else tuple(
+            np.asarray(a, np.float32) for a in (gaits.cells, gaits.cell_speed))
         key = (id(model), id(scene), len(route), spec.name, lib.tobytes(), ctrl, impl,
                bool(limits), record_every, distmax, n_steps, batch, lat_max,
-               bool(interpolate))
+               bool(interpolate), None if cells is None else b"".join(a.tobytes() for a in cells))
         return _Static(key, scene, route, spec, lib, ctrl, model, impl, bool(limits),
                        record_every, float(distmax), n_steps, batch, lat_max,
-                       bool(interpolate))
+                       bool(interpolate), cells)
 
     def __hash__(self) -> int:
         return hash(self.key)
@@ -619,6 +628,12 @@ def _compiled(st: _Static):
     nb, nu = st.batch, spec.nu
     last_seg = len(st.route) - 2
     lib = jnp.asarray(st.lib)
+    n_cells = 0 if st.cells is None else len(st.cells[0])
+    if n_cells:
+        cells, cell_speed = (jnp.asarray(a) for a in st.cells)
+
+        def pick(stp):
+            return _pick_cell(cell_speed, stp)
     ramp_steps = _ramp_steps(dt)
     geoms = _RobotGeoms.of(model)
     prisms = _Prisms.of(st.scene.obstacles)
@@ -693,7 +708,7 @@ def _compiled(st: _Static):
             "alpha": jnp.ones((nb,), jnp.float32), "frac": z, "cyc": zi,
             "need": jnp.ones((nb,), bool),
             "ysin": z, "ycos": z, "ycount": zi, "switches": zi,
-            "dec": jnp.zeros((nb, 6), jnp.float32), "ndec": zi,
+            "dec": jnp.zeros((nb, 6), jnp.float32), "ndec": zi, "cell": zi - 1,
         }
         stats = {
             "active": jnp.ones((nb,), bool), "closest": jnp.full((nb,), st.distmax),
@@ -705,6 +720,7 @@ def _compiled(st: _Static):
             "end_step": jnp.full((nb,), st.n_steps, jnp.int32),
             "end_pose": jnp.zeros((nb, 3), jnp.float32),
             "mode_steps": jnp.zeros((nb, 3), jnp.int32),
+            "cell_steps": jnp.zeros((nb, max(n_cells, 1)), jnp.int32),
             "peak_current": z,
         }
         hist = jnp.zeros((nb, lat_max, nu), jnp.float32)
@@ -726,10 +742,14 @@ def _compiled(st: _Static):
             fwd = mode == 0
             params = params.at[TURN].set(jnp.where(fwd, steer, params[TURN]))
             params = params.at[STEP].set(jnp.where(fwd, params[STEP] * stp, params[STEP]))
+            cell = jnp.int32(-1)
+            if n_cells:
+                cell = jnp.where(fwd, pick(stp), -1).astype(jnp.int32)
+                params = jnp.where(fwd, cells[jnp.maximum(cell, 0)].at[TURN].set(steer), params)
             a = s["alpha"]
             p_old = jnp.where(s["started"], (1 - a) * s["p_old"] + a * s["p_new"], params)
             alpha = jnp.where(s["started"], 0.0, a)
-            return {**s, "seg": seg, "mode": mode, "started": jnp.bool_(True),
+            return {**s, "seg": seg, "mode": mode, "started": jnp.bool_(True), "cell": cell,
                     "last_mode": mode, "last_steer": steer, "last_step": stp,
                     "p_old": p_old, "p_new": params, "alpha": alpha,
                     "cyc": jnp.int32(0), "need": jnp.bool_(False),
@@ -806,6 +826,8 @@ def _compiled(st: _Static):
                  "ycount": s["ycount"] + 1}
             mode_steps = stt["mode_steps"] + (active[:, None] & (
                 s["mode"][:, None] == jnp.arange(3))).astype(jnp.int32)
+            cell_steps = stt["cell_steps"] + (active[:, None] & (
+                s["cell"][:, None] == jnp.arange(max(n_cells, 1)))).astype(jnp.int32)
             dist = jax.vmap(lambda xp, xm: obstacle_distances(xp, xm, geoms, prisms,
                                                               st.distmax))(
                 d.geom_xpos, d.geom_xmat)
@@ -837,6 +859,7 @@ def _compiled(st: _Static):
                                       jnp.concatenate([pos, yaw[:, None]], 1),
                                       stt["end_pose"]),
                 "mode_steps": mode_steps,
+                "cell_steps": cell_steps,
                 "peak_current": jnp.where(active, jnp.maximum(stt["peak_current"], peak),
                                           stt["peak_current"]),
             }
@@ -872,6 +895,8 @@ def _compiled(st: _Static):
         if warp:
             jax.debug.callback(_warp_overflow, stt["peak"][0], stt["peak"][1], naconmax, njmax)
             stt = {k: v for k, v in stt.items() if k != "peak"}
+        if not n_cells:
+            stt = {k: v for k, v in stt.items() if k != "cell_steps"}
         return {**stt, "switches": s["switches"], "samples": n_done,
                 "trajectory": jnp.swapaxes(traj, 0, 1), "decisions": jnp.swapaxes(decs, 0, 1)}
 
@@ -925,6 +950,8 @@ def records(out: dict[str, np.ndarray], route: np.ndarray) -> list[dict[str, Any
             "mode_seconds": {m: round(float(out["mode_steps"][b, i]) * dt, 3)
                              for i, m in enumerate(wr.MODES)},
             "gait_switches": int(out["switches"][b]),
+            "cell_seconds": ([round(float(v) * dt, 3) for v in out["cell_steps"][b]]
+                             if "cell_steps" in out else None),
             "peak_current_frac": (float(out["peak_current"][b]) if out.get("has_currents")
                                   else None),
             "trajectory_columns": ["t", "x", "y", "yaw", "mode"],
