@@ -86,10 +86,10 @@ def results_md() -> str:
              "confirms the stated figures, `make claim ID=<id>` reruns one claim, "
              "`make claims-cpu` every CPU claim that takes under a few minutes._", "",
              "*Machines*: `cpu-2core` is this project's 2-core CPU (often shared with other "
-             "jobs, so its timings are indicative), `h100` one NVIDIA H100, `h200x2` two "
-             "NVIDIA H200 of one host. *Seeds chosen* are those a setting was selected on, "
-             "*reported* those the figure comes from: where they are the same, the figure "
-             "is optimistic for that setting.", ""]
+             "jobs, so its timings are indicative), `h100` one NVIDIA H100, `h200` one "
+             "NVIDIA H200, `h200x2` two NVIDIA H200 of one host. *Seeds chosen* are those a "
+             "setting was selected on, *reported* those the figure comes from: where they are "
+             "the same, the figure is optimistic for that setting.", ""]
     for area, title in cl.AREAS.items():
         mine = [c for c in claims if c.area == area]
         if not mine:

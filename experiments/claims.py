@@ -32,7 +32,7 @@ AREAS = {"tsp": "TSP", "constrained": "Constrained problems (CEC2006, paper tabl
          "gait": "Gait", "path": "Path planning", "speed": "Speed and startup",
          "resume": "Checkpoints, resume and soak",
          "multiobjective": "Multi-objective (Pareto fronts against NSGA-II)"}
-MACHINES = ("cpu-2core", "h100", "h200x2")
+MACHINES = ("cpu-2core", "h100", "h200", "h200x2")
 PROVENANCE = ("device", "versions", "date", "command")
 REQUIRED = ("id", "area", "text", "command", "result", "field", "value", "decimals", "machine",
             "select_seeds", "report_seeds", "cpu_rerun_seconds")

@@ -21,6 +21,9 @@ without falling. The planning entry (the speed and yaw rate a planner prices) is
 model ``walk_tune.py --gaits nao_library`` fitted on the tuning scenes in selection-stream
 worlds (``--planning`` names its output), as it was fitted for ``nao_constrained``; without
 ``--planning`` the file has none (walk it with planned routes of another library).
+``--start-ramp-s`` records the controller's start ramp chosen for these cells
+(``experiments/walk_start.py`` on the tuning scenes); ``eaco walk`` uses it unless told
+otherwise.
 """
 
 from __future__ import annotations
@@ -71,6 +74,8 @@ def main() -> None:
     ap.add_argument("--max-travel", type=float, default=30.0)
     ap.add_argument("--planning", type=Path, default=None,
                     help="a walk_tune.py output whose nao_library row's time model to price")
+    ap.add_argument("--start-ramp-s", type=float, default=None,
+                    help="the controller's start_ramp_s for this library (walk_start.py)")
     ap.add_argument("--out", type=Path,
                     default=HERE.parent / "eaco_jax" / "data" / "walk_gaits" / "nao_library.json")
     args = ap.parse_args()
@@ -123,6 +128,9 @@ def main() -> None:
             "turn_deg_s": c["test_turn_deg_s"], "violation": c["test_violation"],
             "fall_rate": c["test_fall_rate"]} for c in kept],
         **planning,
+        **({"controller": {"start_ramp_s": args.start_ramp_s,
+                           "claim": "walk-start-ramp-library-3-falls"}}
+           if args.start_ramp_s is not None else {}),
     })
     for c in kept:
         print(f"cell {c['coords']}: {c['test_forward_mps']:.3f} m/s, travel "

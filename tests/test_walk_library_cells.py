@@ -1,6 +1,6 @@
 """The route walker drawing its forward gait from a gait library's cells (issue #32): the
-pick by speed, the library file, a native walk that uses several cells, and the MJX walker
-deciding as the native one."""
+pick by speed, the library file, the start ramp, a native walk that uses several cells, and the
+MJX walker deciding as the native one."""
 
 from __future__ import annotations
 
@@ -91,12 +91,41 @@ def test_bad_forward_cells_are_one_line(tmp_path):
             wr.load_walk_gaits(tmp_path / "bad.json")
 
 
-def _native(nao, gaits):
+def test_the_start_ramp_caps_the_step_from_min_step_to_full():
+    c = wr.Controller(start_ramp_s=4.0, min_step=0.35)
+    caps = [wr.start_cap(t, c) for t in (0.0, 1.0, 2.0, 3.9, 4.0, 9.0)]
+    assert caps == pytest.approx([0.35, 0.35, 0.5, 0.975, 1.0, 1.0])
+    assert wr.start_cap(0.0, wr.Controller()) == 1.0  # 0: off
+    cap = jax.jit(lambda t: wm._start_cap(t, c))
+    for t in np.linspace(0.0, 6.0, 61):
+        assert float(cap(jnp.float32(t))) == pytest.approx(wr.start_cap(float(t), c), abs=1e-6)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ConfigError, match="start_ramp_s must be a finite number >= 0"):
+            wr.Controller(start_ramp_s=bad)
+
+
+def test_a_library_names_its_start_ramp_and_a_walk_takes_it_unless_told(tmp_path):
+    from eaco_jax.runs.walk import WalkSettings
+
+    g = wr.load_walk_gaits("nao_library")
+    assert g.start_ramp_s > 0
+    assert WalkSettings(gaits="nao_library").controller(g).start_ramp_s == g.start_ramp_s
+    assert WalkSettings(gaits="nao_library", start_ramp_s=0.0).controller(g).start_ramp_s == 0
+    assert WalkSettings().controller(wr.load_walk_gaits("nao_constrained")).start_ramp_s == 0
+    src = json.loads(LIBRARY.read_text())
+    for ctrl in ({"start_ramp_s": -2.0}, {"steer_gain": 2.0}, {"start_ramp_s": "3"}, [3.0]):
+        bad = {**src, "controller": ctrl}
+        (tmp_path / "bad.json").write_text(json.dumps(bad))
+        with pytest.raises(ConfigError, match="controller may only set start_ramp_s"):
+            wr.load_walk_gaits(tmp_path / "bad.json")
+
+
+def _native(nao, gaits, ctrl=None):
     heading = wr.start_heading(TINY, AROUND)
     model = sw.scene_model(TINY, nao, start_heading=heading)
     dec: list = []
-    rec = wr.walk(TINY, AROUND, nao, gaits, wr.Controller(), max_time=WALK_TIME, model=model,
-                  decisions=dec, motors="spec")
+    rec = wr.walk(TINY, AROUND, nao, gaits, ctrl or wr.Controller(), max_time=WALK_TIME,
+                  model=model, decisions=dec, motors="spec")
     return rec, dec, model, heading
 
 
@@ -112,12 +141,24 @@ def test_a_native_walk_draws_on_several_cells(nao):
     assert plain["cell_seconds"] is None
 
 
+def test_a_walk_with_a_start_ramp_starts_on_the_slowest_cell(nao):
+    g = wr.load_walk_gaits("nao_library")
+    ctrl = wr.Controller(start_ramp_s=4.0)
+    rec, dec, _, _ = _native(nao, g, ctrl)
+    assert dec[0][5] == pytest.approx(ctrl.min_step) and wr.pick_cell(g, dec[0][5]) == 0
+    for t, _, _, mode, _, step in dec:
+        if mode == wr.FORWARD:
+            assert step <= wr.start_cap(t, ctrl) + 1e-9
+    assert rec["cell_seconds"][0] > 0.5  # it walked the slowest cell first
+
+
 @pytest.mark.slow
 def test_mjx_walk_draws_on_the_cells_as_the_native_walk(nao):
     g = wr.load_walk_gaits("nao_library")
-    native, dec, model, heading = _native(nao, g)
+    ctrl = wr.Controller(start_ramp_s=3.0)  # the ramp too
+    native, dec, model, heading = _native(nao, g, ctrl)
     batch = wm.nominal_batch(model, nao, AROUND[0], heading)
-    out = wm.walk_batch(TINY, AROUND, nao, g, wr.Controller(), batch, max_time=WALK_TIME,
+    out = wm.walk_batch(TINY, AROUND, nao, g, ctrl, batch, max_time=WALK_TIME,
                         model=model, motors="spec")
     rec = wm.records(out, AROUND)[0]
     ours = wm.decisions(out)

@@ -120,6 +120,9 @@ class WalkGaits:
     #: gait whose step it shortens), and their measured forward speeds [m/s] ``(K,)``
     cells: np.ndarray | None = dataclasses.field(default=None, compare=False)
     cell_speed: np.ndarray | None = dataclasses.field(default=None, compare=False)
+    #: the controller's ``start_ramp_s`` chosen for this library (its file's
+    #: ``controller.start_ramp_s``), used where the walk does not set one
+    start_ramp_s: float = 0.0
 
     def of(self, mode: str) -> np.ndarray:
         return np.asarray(getattr(self, mode), np.float64)
@@ -189,8 +192,14 @@ def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
         if not ok:
             raise ConfigError(f"{path}: planning needs speed_mps and yaw_rate_deg_s > 0")
     cells, speed = _forward_cells(data, path)
+    ctrl = data.get("controller") or {}
+    ramp = ctrl.get("start_ramp_s", 0.0) if isinstance(ctrl, dict) else None
+    if (not isinstance(ctrl, dict) or set(ctrl) - {"start_ramp_s", "claim"}
+            or not isinstance(ramp, (int, float)) or not (math.isfinite(ramp) and ramp >= 0)):
+        raise ConfigError(f"{path}: controller may only set start_ramp_s, a finite number >= 0,"
+                          f" got {ctrl!r}")
     return WalkGaits(vecs[FORWARD], vecs[LEFT], vecs[RIGHT], str(data.get("source", "")),
-                     planning, cells, speed)
+                     planning, cells, speed, float(ramp))
 
 
 # --------------------------------------------------------------------------- controller
@@ -220,6 +229,10 @@ class Controller:
     #: default: on the tuning scenes it brought walks nearer obstacles, claim
     #: walk-spec-bend-1p0-closest-approach)
     bend_distance: float = 0.0
+    #: over the first this many seconds the forward step fraction is capped at the elapsed
+    #: share of them (at least ``min_step``): the walk starts slow and speeds up; with
+    #: library cells it climbs through them, slowest first (0: off)
+    start_ramp_s: float = 0.0
     blend_cycles: float = 0.5
     goal_radius: float = 0.15
 
@@ -244,6 +257,9 @@ class Controller:
                               f"got {self.slow_deg}")
         if not 0 < self.min_step <= 1:
             raise ConfigError(f"controller min_step must be in (0, 1], got {self.min_step}")
+        if not (math.isfinite(self.start_ramp_s) and self.start_ramp_s >= 0):
+            raise ConfigError(f"controller start_ramp_s must be a finite number >= 0 (0: off),"
+                              f" got {self.start_ramp_s!r}")
         if not (math.isfinite(self.bend_distance) and self.bend_distance >= 0):
             raise ConfigError(f"controller bend_distance must be a finite number >= 0 (0: off),"
                               f" got {self.bend_distance!r}")
@@ -331,6 +347,14 @@ def near_goal(ctrl: Controller) -> Controller:
     spot above ``goal_turn_deg`` (a robot whose steered arc is wider than ``goal_radius``
     would otherwise circle the goal)."""
     return dataclasses.replace(ctrl, turn_deg=min(ctrl.turn_deg, ctrl.goal_turn_deg))
+
+
+def start_cap(t: float, ctrl: Controller) -> float:
+    """The forward step's cap at walking time ``t`` [s]: the elapsed share of
+    ``start_ramp_s``, at least ``min_step`` (1 once it has passed, or with it 0)."""
+    if ctrl.start_ramp_s <= 0:
+        return 1.0
+    return min(1.0, max(ctrl.min_step, t / ctrl.start_ramp_s))
 
 
 def with_cell(choice: Choice, gaits: WalkGaits) -> Choice:
@@ -561,6 +585,9 @@ def walk(scene: Any, route: np.ndarray, spec: RobotSpec, gaits: WalkGaits,
             if choice.mode == FORWARD and ctrl.bend_distance > 0:
                 choice = dataclasses.replace(
                     choice, step=min(choice.step, bend_cap(route, seg, pos, ctrl)))
+            if choice.mode == FORWARD and ctrl.start_ramp_s > 0:
+                choice = dataclasses.replace(choice, step=min(choice.step,
+                                                              start_cap(k * dt, ctrl)))
             choice = with_cell(choice, gaits)
             if k * dt < RAMP_TIME and p_new is not None:
                 choice = last  # no switch during the start-up

@@ -359,6 +359,11 @@ def _choose(error, mode, c: wr.Controller):
     return new, jnp.where(fwd, steer, 0.0), jnp.where(fwd, step, 1.0)
 
 
+def _start_cap(t, c: wr.Controller):
+    """:func:`~eaco_jax.gait.walk_route.start_cap` in JAX (``start_ramp_s`` > 0)."""
+    return jnp.clip(t / c.start_ramp_s, c.min_step, 1.0)
+
+
 def _pick_cell(speed, stp):
     """:func:`~eaco_jax.gait.walk_route.pick_cell` in JAX (``speed``: the cells' speeds,
     slowest first)."""
@@ -734,6 +739,8 @@ def _compiled(st: _Static):
             mode, steer, stp = _choose_near(error, s["mode"], near, c)
             if c.bend_distance > 0:
                 stp = jnp.where(mode == 0, jnp.minimum(stp, _bend_cap(route, seg, pos, c)), stp)
+            if c.start_ramp_s > 0:
+                stp = jnp.where(mode == 0, jnp.minimum(stp, _start_cap(k * dt, c)), stp)
             hold = (k < ramp_steps) & s["started"]
             mode = jnp.where(hold, s["last_mode"], mode)
             steer = jnp.where(hold, s["last_steer"], steer)

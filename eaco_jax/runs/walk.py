@@ -88,6 +88,11 @@ class WalkSettings:
                                    "shorten the forward step as for a heading error of the "
                                    "bend's turn scaled by the distance covered (0: off)")
     blend_cycles: float = setting(0.5, "controller: step cycles a gait change blends over")
+    start_ramp_s: float | None = setting(None, "controller: over the first this many seconds "
+                                         "cap the forward step at the elapsed share of them, "
+                                         "so the walk starts slow (with library cells: slowest "
+                                         "first; 0: off; default: the gait library's, 0 if it "
+                                         "names none)")
     backend: str = setting("native", "physics: native MuJoCo (one world at a time) or MJX "
                            "(the nominal and every randomised world in one batched call)",
                            choices=BACKENDS)
@@ -111,15 +116,21 @@ class WalkSettings:
             raise ConfigError(f"max_time must be a number > 0, got {self.max_time}")
         self.controller()  # one line for bad controller settings
 
-    def controller(self):
+    def controller(self, gaits: Any = None):
+        """The walk controller of these settings; ``start_ramp_s`` unset takes ``gaits``'
+        (a :class:`~eaco_jax.gait.walk_route.WalkGaits`), 0 without one."""
         from eaco_jax.gait.walk_route import Controller
 
+        ramp = self.start_ramp_s
+        if ramp is None:
+            ramp = gaits.start_ramp_s if gaits is not None else 0.0
         return Controller(lookahead=self.lookahead, capture=self.capture,
                           turn_deg=self.turn_deg, resume_deg=self.resume_deg,
                           steer_gain=self.steer_gain, max_steer=self.max_steer,
                           slow_deg=self.slow_deg, stop_deg=self.stop_deg,
                           min_step=self.min_step, goal_turn_deg=self.goal_turn_deg,
-                          bend_distance=self.bend_distance, blend_cycles=self.blend_cycles)
+                          bend_distance=self.bend_distance, blend_cycles=self.blend_cycles,
+                          start_ramp_s=ramp)
 
 
 def planning_scene(scene: Any, clearance: float, ramps: str) -> Any:
@@ -249,7 +260,7 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
     route, planned, plan_info = plan(s, built)
     spec = load_robot("nao")
     gaits = wr.load_walk_gaits(s.gaits)
-    ctrl = s.controller()
+    ctrl = s.controller(gaits)
     max_time = s.max_time or 1.6 * planned + 10.0
     heading = wr.start_heading(original, route)
     model = sw.scene_model(original, spec, start_heading=heading)
