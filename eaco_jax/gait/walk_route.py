@@ -22,6 +22,9 @@ and a path-following controller steers it along the route's polyline, one step c
   gait is. (Steering a cell by the heading error less its measured travel direction, which
   is up to 30 degrees off its torso's heading for some cells, made the robot fall in its first
   seconds on the tuning scenes: claim ``walk-library-travel-steer-falls``.)
+* **Start ramp** (``start_ramp_s``, 0 by default; a gait library's file may name its own): over
+  the walk's first seconds the forward step fraction is capped at the elapsed share of them
+  (:func:`start_cap`), so the walk starts slow, with library cells on the slowest.
 * **Gait changes**: a new choice is made at the start of each step cycle; the walk engine's
   parameters then blend linearly from the old ones to the new over ``blend_cycles`` cycles
   while the gait phase runs on continuously (the engine is evaluated at the phase, not at the
@@ -749,4 +752,4 @@ def _length(xy: np.ndarray) -> float:
 __all__ = ["FORWARD", "LEFT", "MODES", "MOTORS", "RIGHT", "Choice", "Controller", "WalkGaits",
            "WorldInputs", "choose", "gait_params", "ground_height", "load_walk_gaits",
            "motor_physics", "pick_cell", "polygon_distance", "sample_walk_worlds",
-           "start_heading", "track", "walk", "with_cell", "wrap"]
+           "start_cap", "start_heading", "track", "walk", "with_cell", "wrap"]
