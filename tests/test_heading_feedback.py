@@ -255,3 +255,18 @@ def test_gait_and_gait_eval_record_steering_and_noise(tmp_path):
     assert "steering" not in off
     res = CliRunner().invoke(app, ["gait", "--target-noise", "-1"])
     assert res.exit_code != 0 and "target_noise must be" in res.output
+
+
+def test_eaco_gait_tracks_a_turning_gaits_turn_with_track_turn(tmp_path):
+    out = tmp_path / "turn"
+    rec = _invoke(["gait", "--backend", "native", "--ants", "4", "--iterations", "1",
+                   "--horizon", "1.0", "--turn", "left", "--steer", "--track-turn", "--json",
+                   "--out", str(out), "--no-video"])
+    assert rec["steering"] == Steering(track_turn=True).record()
+    ev = _invoke(["gait-eval", str(out / "best_gait.json"), "--backend", "native", "--json"])
+    assert ev["steering"]["track_turn"] is True  # the file's steering, tracking included
+    res = CliRunner().invoke(app, ["gait", "--track-turn"])
+    assert res.exit_code != 0 and "--track-turn needs --steer" in res.output
+    res = CliRunner().invoke(app, ["gait", "--turn", "left", "--steer", "--backend", "native",
+                                   "--ants", "4", "--iterations", "1"])
+    assert res.exit_code != 0 and "--track-turn" in res.output

@@ -668,8 +668,8 @@ def make_gait_problem(
                                f"{spec.name!r} is a {spec.gait}: drop steering")
         if turn is not None and not steering.track_turn:
             raise ProblemError("a turning gait has no heading to hold: drop steering (--steer) "
-                               "or turn, or in the API track its own turn with "
-                               "Steering(track_turn=True)")
+                               "or turn, or track its own turn (--track-turn; in the API "
+                               "Steering(track_turn=True))")
     if not (isinstance(margin, int | float) and math.isfinite(margin) and 0 <= margin < 1):
         raise ProblemError(f"margin must be a number in [0, 1), got {margin!r}")
     if margin and not constrained:

@@ -179,6 +179,9 @@ class GaitSettings:
     steer: bool = setting(False, "close the heading loop: the walk engine's turn rate holds "
                           "the torso's heading (eaco_jax.gait.steer defaults); the gait is "
                           "searched, selected and tested so")
+    track_turn: bool = setting(False, "with --steer: the held heading turns at the gait's own "
+                               "turn rate (Steering(track_turn=True)), so a turning gait "
+                               "(--turn) can be steered")
     constraint_margin: float = setting(0.0, "with --constrained: the search's worlds must meet "
                                        "the endurance, slip and drift limits with this share "
                                        "of each limit's scale to spare (0.1: 5 C, 0.005 m/m, "
@@ -201,6 +204,8 @@ class GaitSettings:
             raise ConfigError("--constrained replaces the energy penalty: drop --penalty")
         if self.constraint_margin and not self.constrained:
             raise ConfigError("--constraint-margin needs --constrained")
+        if self.track_turn and not self.steer:
+            raise ConfigError("--track-turn needs --steer (it sets what the heading loop holds)")
         object.__setattr__(self, "robot", absolute_spec(self.robot))
 
 
@@ -438,14 +443,16 @@ def _problem(robot: str, backend: str, horizon: float, direction: float, slope: 
                              margin=float(margin))
 
 
-def steering_of(on: bool | None, data: dict[str, Any] | None = None) -> Any:
-    """The heading controller: ``on`` True -> the defaults, False -> none, None -> the stored
-    record's ``steering`` (``data``), else none."""
+def steering_of(on: bool | None, data: dict[str, Any] | None = None,
+                track_turn: bool = False) -> Any:
+    """The heading controller: ``on`` True -> the defaults (tracking the gait's own turn with
+    ``track_turn``), False -> none, None -> the stored record's ``steering`` (``data``), else
+    none."""
     from eaco_jax.gait.steer import Steering
 
     if on is None:
         return Steering.from_record((data or {}).get("steering"))
-    return Steering() if on else None
+    return Steering(track_turn=track_turn) if on else None
 
 
 def narrowed_around(problem: Any, init: str | Path) -> tuple[Any, np.ndarray]:
@@ -467,7 +474,8 @@ def build(s: GaitSettings) -> Built:
 
     problem = _problem(s.robot, s.backend, s.horizon, s.direction, s.slope, s.impl, s.robust,
                        s.aggregate, s.penalty, s.penalty_weight, s.turn, s.seed, s.constrained,
-                       ik=s.ik, steering=steering_of(s.steer), target_noise=s.target_noise,
+                       ik=s.ik, steering=steering_of(s.steer, track_turn=s.track_turn),
+                       target_noise=s.target_noise,
                        margin=s.constraint_margin)
     search = problem
     extra: dict[str, Any] = {"full_problem": problem}
