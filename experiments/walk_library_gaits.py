@@ -129,7 +129,7 @@ def main() -> None:
             "fall_rate": c["test_fall_rate"]} for c in kept],
         **planning,
         **({"controller": {"start_ramp_s": args.start_ramp_s,
-                           "claim": "walk-start-ramp-library-3-falls"}}
+                           "claim": f"walk-start-ramp-library-{args.start_ramp_s:g}-falls"}}
            if args.start_ramp_s is not None else {}),
     })
     for c in kept:

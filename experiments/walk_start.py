@@ -14,7 +14,6 @@ worlds of run seed 0 (the report's worlds are the test stream), for each gait li
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from datetime import date
@@ -22,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from common import device_info
+from walk_tune import tuning_walks
 
 from eaco_jax.outputs import write_json
 
@@ -37,10 +37,8 @@ def main() -> None:
     ap.add_argument("--gaits", default="nao_library,nao_constrained")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "walk" / "start_ramp.json")
     args = ap.parse_args()
-    from eaco_jax.gait import scene_world as sw
     from eaco_jax.gait import walk_route as wr
     from eaco_jax.gait.robot import load_robot
-    from eaco_jax.problems.scenes import load_scene
     from eaco_jax.runs import walk as rw
 
     spec = load_robot("nao")
@@ -48,21 +46,15 @@ def main() -> None:
     setups = []
     for name in args.scenes.split(","):
         s = rw.WalkSettings(scene=name)
-        route, planned, _ = rw.plan(s, rw.build(s))
-        scene = load_scene(name)
-        model = sw.scene_model(scene, spec, start_heading=wr.start_heading(scene, route))
-        max_time = 1.6 * planned + 10.0  # the worlds as walk_tune.py draws them
-        inputs, _ = wr.sample_walk_worlds(model, spec, args.worlds,
-                                          int(math.ceil(max_time / spec.control_dt)),
-                                          int(math.ceil(planned / spec.control_dt)),
-                                          seed=0, stream="selection")
+        scene, route, _, model, _, inputs = tuning_walks(s, rw.build(s), spec, args.worlds,
+                                                         "selection")
         setups.append((name, scene, route, model, inputs))
     rows = []
     for lib in args.gaits.split(","):
         gaits = wr.load_walk_gaits(lib)
         for ramp in (float(r) for r in args.ramps.split(",")):
             ctrl = wr.Controller(start_ramp_s=ramp)
-            falls, dist, times = [], [], []
+            falls, dist = [], []
             for name, scene, route, model, inputs in setups:
                 for i, world in enumerate(inputs):
                     w = wr.walk(scene, route, spec, gaits, ctrl, max_time=args.seconds,
@@ -71,7 +63,6 @@ def main() -> None:
                                   "fall_time_s": w["fall_time_s"]})
                     dist.append(float(np.linalg.norm(np.asarray(w["trajectory"][-1][1:3])
                                                      - route[0])))
-                    times.append(w["walked_time_s"])
             n_fell = sum(f["fell"] for f in falls)
             row = {"gaits": lib, "start_ramp_s": ramp, "n": len(falls), "falls": n_fell,
                    "distance_m_mean": float(np.mean(dist)), "walks": falls}

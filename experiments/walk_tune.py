@@ -51,6 +51,27 @@ def time_model(walks: list[dict], routes: dict[str, dict[str, float]]) -> dict |
             "walks": len(ok), "rms_residual_s": float(np.sqrt(np.mean((t - pred) ** 2)))}
 
 
+def tuning_walks(settings, built, spec, worlds: int, stream: str) -> tuple:
+    """One tuning scene's walks: ``(scene, route, planned time, model, max_time, worlds'
+    inputs)``, the route planned by ``settings`` (a ``WalkSettings``) from its ``built``
+    problem and ``worlds`` worlds of ``stream`` of run seed 0, drawn as ``eaco walk`` draws
+    them for that route."""
+    from eaco_jax.gait import scene_world as sw
+    from eaco_jax.gait import walk_route as wr
+    from eaco_jax.problems.scenes import load_scene
+    from eaco_jax.runs import walk as rw
+
+    route, planned, _ = rw.plan(settings, built)
+    scene = load_scene(settings.scene)
+    model = sw.scene_model(scene, spec, start_heading=wr.start_heading(scene, route))
+    max_time = 1.6 * planned + 10.0
+    inputs, _ = wr.sample_walk_worlds(model, spec, worlds,
+                                      int(math.ceil(max_time / spec.control_dt)),
+                                      int(math.ceil(planned / spec.control_dt)),
+                                      seed=0, stream=stream)
+    return scene, route, planned, model, max_time, inputs
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenes", default="random:2004,random:2005,random:2006,random:2007")
@@ -68,10 +89,8 @@ def main() -> None:
     ap.add_argument("--stream", default="selection", choices=("selection", "optimisation"))
     ap.add_argument("--out", type=Path, default=HERE / "results" / "walk" / "tuning.json")
     args = ap.parse_args()
-    from eaco_jax.gait import scene_world as sw
     from eaco_jax.gait import walk_route as wr
     from eaco_jax.gait.robot import load_robot
-    from eaco_jax.problems.scenes import load_scene
     from eaco_jax.runs import walk as rw
 
     spec = load_robot("nao")
@@ -90,15 +109,8 @@ def main() -> None:
         except ProblemError as err:
             print(f"{name}: skipped ({err})", flush=True)
             continue
-        route, planned, _ = rw.plan(s, built)
-        scene = load_scene(name)
-        heading = wr.start_heading(scene, route)
-        model = sw.scene_model(scene, spec, start_heading=heading)
-        max_time = 1.6 * planned + 10.0
-        inputs, _ = wr.sample_walk_worlds(model, spec, args.worlds,
-                                          int(math.ceil(max_time / spec.control_dt)),
-                                          int(math.ceil(planned / spec.control_dt)),
-                                          seed=0, stream=args.stream)
+        scene, route, planned, model, max_time, inputs = tuning_walks(
+            s, built, spec, args.worlds, args.stream)
         setups.append((name, scene, route, planned, model, max_time, inputs))
         d = np.diff(route, axis=0)
         heads = np.arctan2(d[:, 1], d[:, 0])
