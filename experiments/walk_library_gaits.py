@@ -22,8 +22,8 @@ model ``walk_tune.py --gaits nao_library`` fitted on the tuning scenes in select
 worlds (``--planning`` names its output), as it was fitted for ``nao_constrained``; without
 ``--planning`` the file has none (walk it with planned routes of another library).
 ``--start-ramp-s`` records the controller's start ramp chosen for these cells
-(``experiments/walk_start.py`` on the tuning scenes); ``eaco walk`` uses it unless told
-otherwise.
+(``experiments/walk_start.py`` on the tuning scenes) and ``--max-steer`` its steering bound
+(``walk_tune.py`` on the corner scenes); ``eaco walk`` uses them unless told otherwise.
 """
 
 from __future__ import annotations
@@ -66,6 +66,19 @@ def per_row(cells: list[dict]) -> list[dict]:
     return sorted(best.values(), key=lambda c: c["test_forward_mps"])
 
 
+def controller_entry(start_ramp_s: float | None, max_steer: float | None) -> dict:
+    """The library file's ``controller`` entry: the settings chosen for these cells, each
+    with the claim that chose it (none given: no entry)."""
+    chosen, claims = {}, {}
+    if start_ramp_s is not None:
+        chosen["start_ramp_s"] = start_ramp_s
+        claims["start_ramp_s"] = f"walk-start-ramp-library-{start_ramp_s:g}-falls"
+    if max_steer is not None:
+        chosen["max_steer"] = max_steer
+        claims["max_steer"] = f"walk-library-corners-max-steer-{max_steer:g}-successes"
+    return {"controller": {**chosen, "claims": claims}} if chosen else {}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("library", type=Path, help="a library_seed<seed>.json of gait_library.py")
@@ -76,6 +89,9 @@ def main() -> None:
                     help="a walk_tune.py output whose nao_library row's time model to price")
     ap.add_argument("--start-ramp-s", type=float, default=None,
                     help="the controller's start_ramp_s for this library (walk_start.py)")
+    ap.add_argument("--max-steer", type=float, default=None,
+                    help="the controller's max_steer for this library (walk_tune.py on the "
+                         "corner scenes)")
     ap.add_argument("--out", type=Path,
                     default=HERE.parent / "eaco_jax" / "data" / "walk_gaits" / "nao_library.json")
     args = ap.parse_args()
@@ -128,9 +144,7 @@ def main() -> None:
             "turn_deg_s": c["test_turn_deg_s"], "violation": c["test_violation"],
             "fall_rate": c["test_fall_rate"]} for c in kept],
         **planning,
-        **({"controller": {"start_ramp_s": args.start_ramp_s,
-                           "claim": f"walk-start-ramp-library-{args.start_ramp_s:g}-falls"}}
-           if args.start_ramp_s is not None else {}),
+        **controller_entry(args.start_ramp_s, args.max_steer),
     })
     for c in kept:
         print(f"cell {c['coords']}: {c['test_forward_mps']:.3f} m/s, travel "

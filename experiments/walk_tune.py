@@ -8,8 +8,8 @@ plan refuses. Worlds: the *selection* stream of run seed 0 (the report uses the 
 ``--speeds nao`` plans with the path planner's gait table (the first tuning
 round: the gait library's planning entry is fitted from it), ``walk`` with the library's
 planning entry (the check that the fitted model holds). Each config is a set of
-:class:`~eaco_jax.gait.walk_route.Controller` fields over the defaults (and over the library's
-``start_ramp_s``, as ``eaco walk`` takes it); every config walks
+:class:`~eaco_jax.gait.walk_route.Controller` fields over the defaults (and over the controller settings the library
+chose for itself, its file's ``controller``, as ``eaco walk`` takes them); every config walks
 the same routes in the same worlds, with each gait library of ``--gaits`` (routes planned once,
 with the shipped library's planning entry). Writes --out (device, versions, command, date): per
 config the successes, falls, contacts, walked / planned time over all walks and the time
@@ -120,7 +120,7 @@ def main() -> None:
                         "planned_time_s": planned}
     rows = []
     for (lib, gaits), cfg in ((lg, c) for lg in libraries for c in configs):
-        ctrl = wr.Controller(**{"start_ramp_s": gaits.start_ramp_s, **cfg})  # as eaco walk
+        ctrl = wr.Controller(**{**dict(gaits.controller), **cfg})  # as eaco walk
         walks = []
         for name, scene, route, planned, model, max_time, inputs in setups:
             for i, world in enumerate(inputs):

@@ -106,3 +106,18 @@ def test_generated_results_and_headline_table_are_current():
     gen = _module(ROOT / "docs" / "generate.py", "generate")
     assert (ROOT / "docs" / "results.md").read_text() == gen.results_md() + "\n", "make docs"
     assert gen.headline_table() in (ROOT / "README.md").read_text(), "make docs"
+
+
+def test_every_shipped_walk_library_names_existing_claims():
+    """A shipped gait library's planning entry and the controller settings it chose for itself
+    name the claims that measured them."""
+    import json
+
+    ids = {c.id for c in CLAIMS}
+    named = []
+    for f in sorted((ROOT / "eaco_jax" / "data" / "walk_gaits").glob("*.json")):
+        data = json.loads(f.read_text())
+        plan = data.get("planning") or {}
+        named += [plan[k] for k in ("speed_claim", "yaw_claim") if k in plan]
+        named += list((data.get("controller") or {}).get("claims", {}).values())
+    assert len(named) >= 5 and not set(named) - ids, set(named) - ids

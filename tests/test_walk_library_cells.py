@@ -113,11 +113,30 @@ def test_a_library_names_its_start_ramp_and_a_walk_takes_it_unless_told(tmp_path
     assert WalkSettings(gaits="nao_library", start_ramp_s=0.0).controller(g).start_ramp_s == 0
     assert WalkSettings().controller(wr.load_walk_gaits("nao_constrained")).start_ramp_s == 0
     src = json.loads(LIBRARY.read_text())
-    for ctrl in ({"start_ramp_s": -2.0}, {"steer_gain": 2.0}, {"start_ramp_s": "3"}, [3.0]):
-        bad = {**src, "controller": ctrl}
-        (tmp_path / "bad.json").write_text(json.dumps(bad))
-        with pytest.raises(ConfigError, match="controller may only set start_ramp_s"):
+    for ctrl, msg in (({"lookahead": 2.0}, "controller may only set start_ramp_s, turn_deg"),
+                      ({"start_ramp_s": "3"}, "controller may only set"),
+                      ({"turn_deg": True}, "controller may only set"),
+                      ([3.0], "controller may only set"),
+                      ({"start_ramp_s": -2.0}, "bad.json: controller start_ramp_s must be"),
+                      ({"turn_deg": 10.0}, "bad.json: controller resume_deg must be in")):
+        (tmp_path / "bad.json").write_text(json.dumps({**src, "controller": ctrl}))
+        with pytest.raises(ConfigError, match=msg):
             wr.load_walk_gaits(tmp_path / "bad.json")
+
+
+def test_a_library_may_choose_controller_settings_and_a_walk_overrides_them(tmp_path):
+    from eaco_jax.runs.walk import WalkSettings
+
+    src = json.loads(LIBRARY.read_text())
+    chosen = {"start_ramp_s": 2.0, "turn_deg": 50.0, "max_steer": 0.5, "claim": "x"}
+    (tmp_path / "lib.json").write_text(json.dumps({**src, "controller": chosen}))
+    g = wr.load_walk_gaits(tmp_path / "lib.json")
+    c = WalkSettings(gaits=str(tmp_path / "lib.json")).controller(g)
+    assert (c.start_ramp_s, c.turn_deg, c.max_steer) == (2.0, 50.0, 0.5)
+    assert c.min_step == wr.Controller.min_step and c.steer_gain == wr.Controller.steer_gain
+    c = WalkSettings(turn_deg=180.0, min_step=0.5).controller(g)  # the walk's own win
+    assert (c.turn_deg, c.max_steer, c.min_step) == (180.0, 0.5, 0.5)
+    assert WalkSettings().controller() == wr.Controller()  # no library: the defaults
 
 
 def _native(nao, gaits, ctrl=None):

@@ -123,9 +123,14 @@ class WalkGaits:
     #: gait whose step it shortens), and their measured forward speeds [m/s] ``(K,)``
     cells: np.ndarray | None = dataclasses.field(default=None, compare=False)
     cell_speed: np.ndarray | None = dataclasses.field(default=None, compare=False)
-    #: the controller's ``start_ramp_s`` chosen for this library (its file's
-    #: ``controller.start_ramp_s``), used where the walk does not set one
-    start_ramp_s: float = 0.0
+    #: controller settings chosen for this library (its file's ``controller`` entry, fields
+    #: of :data:`LIBRARY_CONTROLLER`), used where the walk does not set them
+    controller: tuple[tuple[str, float], ...] = ()
+
+    @property
+    def start_ramp_s(self) -> float:
+        """The library's start ramp (0 where it names none)."""
+        return dict(self.controller).get("start_ramp_s", 0.0)
 
     def of(self, mode: str) -> np.ndarray:
         return np.asarray(getattr(self, mode), np.float64)
@@ -195,14 +200,32 @@ def load_walk_gaits(name_or_path: str | Path = "nao") -> WalkGaits:
         if not ok:
             raise ConfigError(f"{path}: planning needs speed_mps and yaw_rate_deg_s > 0")
     cells, speed = _forward_cells(data, path)
-    ctrl = data.get("controller") or {}
-    ramp = ctrl.get("start_ramp_s", 0.0) if isinstance(ctrl, dict) else None
-    if (not isinstance(ctrl, dict) or set(ctrl) - {"start_ramp_s", "claim"}
-            or not isinstance(ramp, (int, float)) or not (math.isfinite(ramp) and ramp >= 0)):
-        raise ConfigError(f"{path}: controller may only set start_ramp_s, a finite number >= 0,"
-                          f" got {ctrl!r}")
     return WalkGaits(vecs[FORWARD], vecs[LEFT], vecs[RIGHT], str(data.get("source", "")),
-                     planning, cells, speed, float(ramp))
+                     planning, cells, speed, _library_controller(data.get("controller"), path))
+
+
+#: the controller settings a gait library's file may choose for itself (``controller``)
+LIBRARY_CONTROLLER = ("start_ramp_s", "turn_deg", "resume_deg", "steer_gain", "max_steer",
+                      "slow_deg", "stop_deg", "min_step", "goal_turn_deg")
+
+
+def _library_controller(entry: Any, path: Path) -> tuple[tuple[str, float], ...]:
+    """A library file's ``controller`` entry as ``(field, value)`` pairs: numbers for fields
+    of :data:`LIBRARY_CONTROLLER`, plus informational ``claim`` / ``claims``; checked by
+    building a :class:`Controller` of them."""
+    entry = entry or {}
+    fields = set(entry) - {"claim", "claims"} if isinstance(entry, dict) else None
+    if (fields is None or fields - set(LIBRARY_CONTROLLER)
+            or not all(isinstance(entry[f], (int, float)) and not isinstance(entry[f], bool)
+                       for f in fields)):
+        raise ConfigError(f"{path}: controller may only set {', '.join(LIBRARY_CONTROLLER)} "
+                          f"(numbers), got {entry!r}")
+    pairs = tuple(sorted((f, float(entry[f])) for f in fields))
+    try:
+        Controller(**dict(pairs))
+    except ConfigError as err:
+        raise ConfigError(f"{path}: {err}") from None
+    return pairs
 
 
 # --------------------------------------------------------------------------- controller

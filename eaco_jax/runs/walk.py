@@ -35,6 +35,9 @@ import numpy as np
 from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.runs.base import Built, RunKind, check_out, check_settings, setting
 
+#: the help's note on a controller setting a gait library may choose for itself
+LIB = " (default: the gait library's, else {:g})"
+
 PLANNERS = ("path-eaco", "path-ga", "optimal")
 BACKENDS = ("native", "mjx")
 IMPLS = ("jax", "warp")
@@ -71,19 +74,23 @@ class WalkSettings:
                           "table (a shipped name such as 'nao', or a JSON file)")
     lookahead: float = setting(0.9, "controller: target distance ahead on the segment [m]")
     capture: float = setting(0.3, "controller: a waypoint is reached within this [m]")
-    turn_deg: float = setting(180.0, "controller: turn on the spot above this heading error "
-                              "(180: never)")
-    resume_deg: float = setting(20.0, "controller: stop turning below this heading error")
-    steer_gain: float = setting(1.2, "controller: forward gait's turn rate per heading error")
-    max_steer: float = setting(0.8, "controller: largest turn rate of the forward gait "
-                               "[rad/s]")
-    slow_deg: float = setting(15.0, "controller: shorten the forward step above this heading "
-                              "error")
-    stop_deg: float = setting(120.0, "controller: ... to --min-step of its length at this error")
-    min_step: float = setting(0.35, "controller: shortest forward step, a fraction of the "
-                              "gait's")
-    goal_turn_deg: float = setting(60.0, "controller: within --lookahead of the goal, turn on "
-                                   "the spot above this heading error (180: never)")
+    turn_deg: float | None = setting(None, "controller: turn on the spot above this heading "
+                                     "error (180: never)" + LIB.format(180))
+    resume_deg: float | None = setting(None, "controller: stop turning below this heading error"
+                                       + LIB.format(20))
+    steer_gain: float | None = setting(None, "controller: forward gait's turn rate per heading "
+                                       "error" + LIB.format(1.2))
+    max_steer: float | None = setting(None, "controller: largest turn rate of the forward gait "
+                                      "[rad/s]" + LIB.format(0.8))
+    slow_deg: float | None = setting(None, "controller: shorten the forward step above this "
+                                     "heading error" + LIB.format(15))
+    stop_deg: float | None = setting(None, "controller: ... to --min-step of its length at this "
+                                     "error" + LIB.format(120))
+    min_step: float | None = setting(None, "controller: shortest forward step, a fraction of the"
+                                     " gait's" + LIB.format(0.35))
+    goal_turn_deg: float | None = setting(None, "controller: within --lookahead of the goal, turn"
+                                          " on the spot above this heading error (180: "
+                                          "never)" + LIB.format(60))
     bend_distance: float = setting(0.0, "controller: within this distance of a bend [m], "
                                    "shorten the forward step as for a heading error of the "
                                    "bend's turn scaled by the distance covered (0: off)")
@@ -91,8 +98,7 @@ class WalkSettings:
     start_ramp_s: float | None = setting(None, "controller: over the first this many seconds "
                                          "cap the forward step at the elapsed share of them, "
                                          "so the walk starts slow (with library cells: slowest "
-                                         "first; 0: off; default: the gait library's, 0 if it "
-                                         "names none)")
+                                         "first; 0: off)" + LIB.format(0))
     backend: str = setting("native", "physics: native MuJoCo (one world at a time) or MJX "
                            "(the nominal and every randomised world in one batched call)",
                            choices=BACKENDS)
@@ -117,20 +123,17 @@ class WalkSettings:
         self.controller()  # one line for bad controller settings
 
     def controller(self, gaits: Any = None):
-        """The walk controller of these settings; ``start_ramp_s`` unset takes ``gaits``'
-        (a :class:`~eaco_jax.gait.walk_route.WalkGaits`), 0 without one."""
-        from eaco_jax.gait.walk_route import Controller
+        """The walk controller of these settings; a field of ``LIBRARY_CONTROLLER`` left
+        unset (None) takes the value ``gaits`` (a
+        :class:`~eaco_jax.gait.walk_route.WalkGaits`) chose for itself, else the
+        :class:`~eaco_jax.gait.walk_route.Controller` default."""
+        from eaco_jax.gait.walk_route import LIBRARY_CONTROLLER, Controller
 
-        ramp = self.start_ramp_s
-        if ramp is None:
-            ramp = gaits.start_ramp_s if gaits is not None else 0.0
+        chosen = dict(gaits.controller) if gaits is not None else {}
+        own = {f: getattr(self, f) for f in LIBRARY_CONTROLLER}
         return Controller(lookahead=self.lookahead, capture=self.capture,
-                          turn_deg=self.turn_deg, resume_deg=self.resume_deg,
-                          steer_gain=self.steer_gain, max_steer=self.max_steer,
-                          slow_deg=self.slow_deg, stop_deg=self.stop_deg,
-                          min_step=self.min_step, goal_turn_deg=self.goal_turn_deg,
                           bend_distance=self.bend_distance, blend_cycles=self.blend_cycles,
-                          start_ramp_s=ramp)
+                          **{**chosen, **{f: v for f, v in own.items() if v is not None}})
 
 
 def planning_scene(scene: Any, clearance: float, ramps: str) -> Any:
