@@ -8,8 +8,9 @@ plan refuses. Worlds: the *selection* stream of run seed 0 (the report uses the 
 ``--speeds nao`` plans with the path planner's gait table (the first tuning
 round: the gait library's planning entry is fitted from it), ``walk`` with the library's
 planning entry (the check that the fitted model holds). Each config is a set of
-:class:`~eaco_jax.gait.walk_route.Controller` fields over the defaults (and over the controller settings the library
-chose for itself, its file's ``controller``, as ``eaco walk`` takes them); every config walks
+:class:`~eaco_jax.gait.walk_route.Controller` fields over the defaults (and over the
+controller settings the library chose for itself, its file's ``controller``, as ``eaco walk``
+takes them); every config walks
 the same routes in the same worlds, with each gait library of ``--gaits`` (routes planned once,
 with the shipped library's planning entry). Writes --out (device, versions, command, date): per
 config the successes, falls, contacts, walked / planned time over all walks and the time
