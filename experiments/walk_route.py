@@ -76,6 +76,7 @@ def compare(out: Path, other: Path, command: str) -> dict:
             else 1.0
 
     rows, tot = [], {"both": 0, "here_only": 0, "there_only": 0, "neither": 0}
+    n_worlds = set()
     for path in sorted(out.glob("*/walk.json")):
         here = json.loads(path.read_text())
         there = json.loads((other / path.parent.name / "walk.json").read_text())
@@ -88,12 +89,14 @@ def compare(out: Path, other: Path, command: str) -> dict:
                    else "there_only" if b["success"] else "neither")
             row[key] += 1
             tot[key] += 1
+        n_worlds.add(len(here["worlds"]["walks"]))
         row["mcnemar_p"] = mcnemar(row["here_only"], row["there_only"])
         rows.append(row)
     tot["mcnemar_p"] = mcnemar(tot["here_only"], tot["there_only"])
     rec = {"command": command, "date": str(date.today()), "device": device_info(),
            "here": _relative(out), "there": _relative(other),
-           "pairing": "the same scene and world (test stream of run seed 0, worlds 0-19)",
+           "pairing": "the same scene and world (test stream of run seed 0, worlds 0-"
+                      f"{max(n_worlds, default=0) - 1})",
            "total": tot, "scenes": rows}
     write_json(out / "compare.json", rec)
     return rec
