@@ -5,10 +5,11 @@
 ``construct_tours_sparse(..., plan="kernel")`` runs one Pallas (Triton) kernel per block of ants
 on a GPU and in Pallas' interpreter elsewhere; ``tests/test_tsp_sparse.py`` checks on the CPU
 that it builds the scan's tours. This checks the compiled kernel: for each random uniform
-instance (``--sizes``, integer coordinates in [0, 10**6), instance seed 1: a selection
-instance, never reported on), colony size (``--ants``) and focused-construction cap
-(``--caps``, 0: none), both plans build tours from the same draws on the same random choice
-weights over the k-d tree's 16 nearest candidates, from the Hilbert-curve tour; the row
+instance (``--sizes``, integer coordinates in [0, 10**6) drawn by ``default_rng([1, n])``:
+not one of ``tsp_large.py``'s instances, and never reported on), colony size (``--ants``)
+and focused-construction cap (``--caps``, 0: none), both plans build tours from the same
+draws on the same random choice weights over the k-d tree's 16 nearest candidates, from the
+Hilbert-curve tour; the row
 records the share of ants whose tours are identical, whether every tour is a permutation,
 and each plan's median seconds per construction over ``--repeats`` calls after compilation
 (compile seconds apart). Prints a table and writes JSON (device, versions, command, date). On
@@ -73,7 +74,7 @@ def main() -> None:
     print(f"{'n':>7} {'ants':>5} {'cap':>4} {'same':>6} {'perm':>5} {'scan s':>9} "
           f"{'kernel s':>9} {'speed-up':>8}")
     for n in args.sizes:
-        rng = np.random.default_rng([1, n])  # instance seed 1 (selection), per size
+        rng = np.random.default_rng([1, n])  # not tsp_large.py's [n, seed]
         p = SparseTSP.from_coords(rng.integers(0, 10**6, (n, 2)), neighbors=args.neighbors)
         ref = hilbert_tour(p.coords)
         cand_w = jnp.asarray(rng.uniform(0.1, 1.0, (n, args.neighbors)), jnp.float32)
