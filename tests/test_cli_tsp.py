@@ -109,6 +109,12 @@ def test_auto_help_is_read_from_the_colony_table():
             "with --max-seconds 5 or less), else 96;") in helps["ants"]
     assert helps["local_search"].endswith(
         "auto: 2opt+oropt on a CPU; on a GPU 2opt below 8 cities, else or-2opt)")
+    gpu = tsp.sparse_defaults("gpu")
+    assert f"sparse path's default on a GPU {tsp.bands_text(gpu)};" in helps["ants"]
+    three = dataclasses.replace(gpu, ants=(tsp.AntsBand(10, 8, "a"), tsp.AntsBand(20, 8, "b"),
+                                           tsp.AntsBand(30, 4, "c"), tsp.AntsBand(40, 8, "d")))
+    assert tsp.bands_text(three) == ("8 below 20 cities, 4 below 30 cities, "
+                                     "8 below 40 cities")
     assert helps["ls_best_k"].endswith("(auto: the 25 best on a CPU; every tour on a GPU)")
     assert helps["ls_neighbors"].endswith("(auto: all on a CPU; on a GPU 16 below 700 cities, "
                                           "else all (8 for 700-1,499 cities with "

@@ -118,11 +118,10 @@ class SparseRow:
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
 #: instance: on a GPU 128 new edges as moves with the 96 best ants' improvements merged
 #: (lowest mean of three settings over four run seeds), with 1,536 ants below 8,000 cities
-#: (chosen on the 5k selection instance), 384 below 12,500 (on the 10k one, where no colony
-#: above 384 was tried) and 1,536 below 20,000 (on the 15k one, at d15112's budget), each the
-#: lowest mean of three or four colony sizes over three run seeds; the bounds lie between
-#: measured sizes (6,000 and 10,000; 10,000 and 15,000; 15,112 and 100,000, where the 96-ant
-#: colony was measured). On a CPU
+#: (chosen on the 5k selection instance), below 12,500 (on the 10k one) and below 20,000 (on
+#: the 15k one, at d15112's budget), each the lowest mean of three or four colony sizes over
+#: three run seeds; the last bound lies between measured sizes (15,112 and 100,000, where the
+#: 96-ant colony was measured). On a CPU
 #: 32 new edges city by city
 #: (best of three; full construction: ``--construction scan``). The sparse path starts from
 #: 3,000 cities on a GPU (it beat the dense path there on a selection and a report instance;
@@ -133,7 +132,7 @@ SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
               from_cities=3000, from_claim="tsp-3k-h100-select-sparse-over-bhh-mean",
               merge_ants=96,
               ants=(AntsBand(8000, 1536, "tsp-5k-h100-select-ants1536-over-bhh-mean"),
-                    AntsBand(12500, 384, "tsp-10k-h100-select-ants384-over-bhh-mean"),
+                    AntsBand(12500, 1536, "tsp-10k-h100-select-s31-a1536-over-bhh-mean"),
                     AntsBand(20000, 1536, "tsp-15k-h100-select-ants1536-over-bhh-mean"))),
     SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
               from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
@@ -148,6 +147,18 @@ def sparse_defaults(backend: str) -> SparseRow | None:
     """The :data:`SPARSE_DEFAULTS` row of ``backend`` (None: full construction)."""
     kind = "cpu" if backend == "cpu" else "gpu"
     return next((r for r in SPARSE_DEFAULTS if r.backend == kind), None)
+
+
+def bands_text(row: SparseRow) -> str:
+    """``row``'s colony sizes in words, neighbouring bands of one size joined ("1536 below
+    20,000 cities")."""
+    joined: list[AntsBand] = []
+    for b in row.ants:
+        if joined and joined[-1].ants == b.ants:
+            joined[-1] = b
+        else:
+            joined.append(b)
+    return ", ".join(f"{b.ants} below {b.below:,} cities" for b in joined)
 
 
 def row_ants(row: SparseRow, n: int) -> int | None:
@@ -212,8 +223,7 @@ class TspSettings:
     ants: int | None = setting(None, f"colony size (auto: {auto_help('ants')}"
                                + "".join(f"; on the sparse path's default on a "
                                          f"{r.backend.upper()} "
-                                         + ", ".join(f"{b.ants} below {b.below:,} cities"
-                                                     for b in r.ants)
+                                         + bands_text(r)
                                          for r in SPARSE_DEFAULTS if r.ants)
                                + "; chosen for the shortest tour within a time budget, "
                                "docs/results.md)")

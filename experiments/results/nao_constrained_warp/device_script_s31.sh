@@ -104,6 +104,31 @@ if [ "$P" = tspsel ]; then  # #33: the compiled kernel's scan construction again
     save
   done
 fi
+if [ "$P" = tsp10 ]; then  # #33 stretch: colonies above 384 at 10k (selection instance seed 1, 18 s), then REPORT=1: the winner on instance seed 0
+  TL=/tmp/src/experiments/tsp_large.py
+  if [ -z "$REPORT" ]; then
+    for a in ${ARMS:-a384 a768 a1536}; do
+      F="--ants ${a#a}"
+      [ -f /tmp/rep/warm_sel10k_$a.json ] || timeout 60 python3 $TL --sizes 10000 --seconds 12 --instance-seeds 1 --seeds 0 --eaco-args "$F" --process-timeout 50 --work /tmp/tsp10 --out /tmp/rep/warm_sel10k_$a.json > /tmp/rep/warm_sel10k_$a.log 2>&1
+      for s in ${SEEDS:-0 1 2}; do
+        [ $(left) -lt 40 ] && break
+        [ -n "$SEEDS" ] && mv /tmp/rep/sel10k_${a}_s$s.json /tmp/rep/sel10k_${a}_s${s}_first.json
+        timeout 60 python3 $TL --sizes 10000 --seconds 18 --instance-seeds 1 --seeds $s --eaco-args "$F" --process-timeout 50 --work /tmp/tsp10 --out /tmp/rep/sel10k_${a}_s$s.json > /tmp/rep/sel10k_${a}_s$s.log 2>&1
+        echo "sel10k $a seed $s rc $? after $(( $(date +%s) - T0 )) s: $(grep -o 'over_bhh_percent[^,]*' /tmp/rep/sel10k_${a}_s$s.json | head -1)"
+      done
+      save
+    done
+  else
+    F="--ants $REPORT"
+    timeout 60 python3 $TL --sizes 10000 --seconds 12 --instance-seeds 0 --seeds 0 --eaco-args "$F" --process-timeout 50 --work /tmp/tsp10r --out /tmp/rep/warm_rep10k.json > /dev/null 2>&1
+    for s in 0 1 2 3 4 5 6 7 8 9; do
+      [ $(left) -lt 35 ] && break
+      timeout 60 python3 $TL --sizes 10000 --seconds 18 --instance-seeds 0 --seeds $s --eaco-args "$F" --process-timeout 50 --work /tmp/tsp10r --out /tmp/rep/rep10k_s$s.json > /tmp/rep/rep10k_s$s.log 2>&1
+      echo "rep10k seed $s rc $? after $(( $(date +%s) - T0 )) s: $(grep -o 'gap_percent[^,]*' /tmp/rep/rep10k_s$s.json | head -1)"
+    done
+    save
+  fi
+fi
 if [ "$P" = warptest ]; then
   mkdir -p /tmp/t && cp $R/tests/test_warp.py $R/tests/conftest.py /tmp/t/
   (cd /tmp/t && PYTHONPATH=/tmp/eaco:/tmp/site timeout $(( $(left) - 5 )) python3 -m pytest -p no:cacheprovider -rs -q test_warp.py > /tmp/rep/warptest.txt 2>&1)
