@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import statistics
 import sys
 import time
 from datetime import date
@@ -29,7 +28,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import device_info
+from common import device_info, timed
 
 from eaco_jax.ops.construction import kernel_compiles_here
 from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
@@ -39,17 +38,13 @@ from eaco_jax.problems.tsp_sparse import SparseTSP
 HERE = Path(__file__).resolve().parent
 
 
-def timed(fn, repeats: int) -> tuple[np.ndarray, float, float]:
-    """``(tours, compile seconds, median seconds per call)`` of a jitted construction."""
+def tours_and_times(fn, repeats: int) -> tuple[np.ndarray, float, float]:
+    """``(tours, compile seconds, median seconds per call)`` of a jitted construction: the
+    first call compiles and gives the tours, then :func:`common.timed` times warm calls."""
     t0 = time.perf_counter()
     out = np.asarray(jax.block_until_ready(fn()))
     first = time.perf_counter() - t0
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn())
-        times.append(time.perf_counter() - t0)
-    med = statistics.median(times) if times else first
+    _, med = timed(fn, max(repeats, 1))
     return out, max(first - med, 0.0), med
 
 
@@ -86,8 +81,9 @@ def main() -> None:
                 for plan in ("scan", "kernel"):
                     fn = jax.jit(functools.partial(build, plan=plan, max_new_edges=c),
                                  static_argnames=("plan", "max_new_edges"))
-                    res[plan] = timed(lambda fn=fn, a=(cand_w, p.neighbors, starts, ref): fn(
-                        jax.random.key(7), *a), args.repeats)
+                    a = (cand_w, p.neighbors, starts, ref)
+                    res[plan] = tours_and_times(lambda fn=fn, a=a: fn(jax.random.key(7), *a),
+                                                args.repeats)
                 ts, tk = res["scan"][0], res["kernel"][0]
                 perm = bool(np.all(np.sort(tk, axis=1) == np.arange(n)[None, :]))
                 row = {"n": n, "ants": m, "max_new_edges": cap, "k": args.neighbors,
