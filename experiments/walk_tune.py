@@ -65,7 +65,7 @@ def tuning_walks(settings, built, spec, worlds: int, stream: str) -> tuple:
     route, planned, _ = rw.plan(settings, built)
     scene = load_scene(settings.scene)
     model = sw.scene_model(scene, spec, start_heading=wr.start_heading(scene, route))
-    max_time = 1.6 * planned + 10.0
+    max_time = settings.walk_seconds(planned)
     inputs, _ = wr.sample_walk_worlds(model, spec, worlds,
                                       int(math.ceil(max_time / spec.control_dt)),
                                       int(math.ceil(planned / spec.control_dt)),

@@ -122,6 +122,11 @@ class WalkSettings:
             raise ConfigError(f"max_time must be a number > 0, got {self.max_time}")
         self.controller()  # one line for bad controller settings
 
+    def walk_seconds(self, planned: float) -> float:
+        """How long a walk of a route planned at ``planned`` seconds may last: ``max_time``,
+        or 1.6 x the planned time + 10 s."""
+        return self.max_time or 1.6 * planned + 10.0
+
     def controller(self, gaits: Any = None):
         """The walk controller of these settings; a field of ``LIBRARY_CONTROLLER`` left
         unset (None) takes the value ``gaits`` (a
@@ -264,7 +269,7 @@ def run(s: WalkSettings, *, progress: bool = False, checkpointing: Any = None) -
     spec = load_robot("nao")
     gaits = wr.load_walk_gaits(s.gaits)
     ctrl = s.controller(gaits)
-    max_time = s.max_time or 1.6 * planned + 10.0
+    max_time = s.walk_seconds(planned)
     heading = wr.start_heading(original, route)
     model = sw.scene_model(original, spec, start_heading=heading)
     t0 = time.perf_counter()
