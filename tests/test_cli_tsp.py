@@ -263,8 +263,18 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     row = tsp.sparse_defaults("gpu")
     assert row.merge_ants >= 2
     st = strategy()
+    built_c, built_e = tsp.row_construction(row, 51)
     assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants) == (
-        row.max_new_edges, row.construction, tsp.LS_FOCUS_WIDTH, row.merge_ants)
+        built_e, built_c, tsp.LS_FOCUS_WIDTH, row.merge_ants)
+    # the constructions by size, as the colony sizes; past the last band the row's own
+    bands = row.constructions
+    assert bands and [b.below for b in bands] == sorted(b.below for b in bands)
+    assert (built_c, built_e) == (bands[0].construction, bands[0].max_new_edges)
+    for lo, hi in zip(bands, bands[1:], strict=False):
+        assert tsp.row_construction(row, lo.below - 1) == (lo.construction, lo.max_new_edges)
+        assert tsp.row_construction(row, lo.below) == (hi.construction, hi.max_new_edges)
+    assert tsp.row_construction(row, bands[-1].below) == (row.construction, row.max_new_edges)
+    assert len({tsp.row_construction(row, b.below - 1) for b in bands}) > 1  # bands differ
     assert strategy(merge_ants=0).merge_ants is None  # 0 turns the row's merging off
     assert strategy(merge_ants=8).merge_ants == 8
     first, last = row.ants[0], row.ants[-1]
@@ -299,12 +309,12 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     pinned = tsp.with_resolved_settings(ck, built).run_info["settings"]
     keys = ("max_new_edges", "construction", "ls_focus_width", "merge_ants", "ants")
     assert tuple(pinned[k] for k in keys) == (
-        row.max_new_edges, "moves", tsp.LS_FOCUS_WIDTH, row.merge_ants, row.ants[0].ants)
+        built_e, built_c, tsp.LS_FOCUS_WIDTH, row.merge_ants, row.ants[0].ants)
     monkeypatch.undo()
     st = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2,
                                    **{k: pinned[k] for k in keys})).strategy
     assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants,
-            st.num_ants) == (row.max_new_edges, "moves", 128, row.merge_ants, row.ants[0].ants)
+            st.num_ants) == (built_e, built_c, 128, row.merge_ants, row.ants[0].ants)
     # the CPU's row merges nothing: a pinned CPU run resumes without merging on any backend
     ck_cpu = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
     built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))

@@ -173,3 +173,32 @@ def test_strategy_moves_runs_on_the_sparse_path_and_is_refused_on_the_dense_one(
     with pytest.raises(ValueError, match="kind='3opt' is not one of"):
         construct_tours_moves(jax.random.key(0), jnp.ones((150, 8)), p.neighbors,
                               jnp.arange(150), 1, 2, kind="3opt")
+
+
+def test_new_only_keeps_a_chain_of_moves_from_putting_back_the_reference_edges():
+    # trails that favour the reference tour (as they do once a colony has converged): a chain
+    # of moves then mostly restores the reference edges its previous moves removed, unless
+    # every move must insert an edge the reference lacks (construction "moves-new")
+    p, _, _ = _setup()
+    xy = np.random.default_rng(0).integers(0, 10_000, (N, 2))  # _setup's coordinates
+    ref, left = [0], set(range(1, N))  # a nearest-neighbour tour: its edges are candidates
+    while left:
+        nxt = min(left, key=lambda c: float(np.hypot(*(xy[c] - xy[ref[-1]]))))
+        ref.append(nxt)
+        left.remove(nxt)
+    ref = np.asarray(ref, np.int32)
+    cands = np.asarray(p.neighbors)
+    pos = np.empty(N, np.int64)
+    pos[ref] = np.arange(N)
+    near = (cands == ref[(pos + 1) % N][:, None]) | (cands == ref[(pos - 1) % N][:, None])
+    cand_w = np.where(near, 1e6, 1.0).astype(np.float32)
+    counts = {}
+    for new_only in (False, True):
+        tours = _build(ref, cand_w, cands, 16, new_only=new_only)
+        for t in tours:
+            assert sorted(t) == list(range(N))
+        counts[new_only] = np.mean([len(_edges(t) - _edges(ref)) for t in tours])
+    assert counts[True] >= 2 * counts[False], counts
+    strategy = GraphEACO(num_ants=M, local_search="none", construction="moves-new",
+                         max_new_edges=4)
+    assert strategy.construction == "moves-new"

@@ -63,6 +63,7 @@ def construct_tours_moves(
     skip_neighbours: bool = True,
     kind: str = "2opt",
     segment: int = 8,
+    new_only: bool = False,
 ) -> Array:
     """One tour per ant: ``ref_tour`` after ``n_moves`` 2-opt moves (module docstring).
 
@@ -85,6 +86,10 @@ def construct_tours_moves(
         neighbour: three new edges, a move that one 2-opt or Or-opt step does not undo).
       segment: the longest segment an "or3opt" move carries (its length is uniform in
         1..segment).
+      new_only: draw v among c's candidates that are not its neighbours in ``ref_tour``
+        either, so that every move inserts an edge the reference lacks. Without it, once the
+        trails favour the reference tour, a chain of moves mostly puts back the reference
+        edges that its previous moves removed, and many moves leave few changed edges.
 
     Returns:
       (m, n) int32 tours (each a permutation; the start city is not fixed).
@@ -103,6 +108,8 @@ def construct_tours_moves(
     if n_moves == 0:
         return tour
     every = jnp.arange(m, dtype=jnp.int32)
+    ref_pos = pos[0]
+    ref_succ, ref_pred = ref[(ref_pos + 1) % n], ref[(ref_pos - 1) % n]
 
     def move(t, carry):
         tour, pos, cur, came = carry
@@ -119,6 +126,9 @@ def construct_tours_moves(
         if skip_neighbours:
             succ_c = tour[every, (i + 1) % n]
             w = jnp.where((cand == pred_c[:, None]) | (cand == succ_c[:, None]), 0.0, w)
+        if new_only:
+            w = jnp.where((cand == ref_pred[c][:, None]) | (cand == ref_succ[c][:, None]), 0.0,
+                          w)
         idx, ok = _sample(w, jax.random.uniform(k_pick, (m,)), q0)
         v = jnp.where(ok, cand[every, idx], c)  # no positive weight: no move
         # the side of c whose edge goes: walking, not the edge the ant arrived by

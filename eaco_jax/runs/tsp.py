@@ -94,6 +94,17 @@ class AntsBand:
 
 
 @dataclasses.dataclass(frozen=True)
+class ConstructionBand:
+    """The focused construction for sparse runs of fewer than ``below`` cities: ``max_new_edges``
+    moves of kind ``construction``, chosen by ``claim``."""
+
+    below: int
+    construction: str
+    max_new_edges: int
+    claim: str
+
+
+@dataclasses.dataclass(frozen=True)
 class SparseRow:
     """What a sparse-path run on ``backend`` ("cpu", or "gpu" for any accelerator) resolves
     ``--max-new-edges`` (left out) and ``--construction auto`` to, named by the claim whose
@@ -113,6 +124,9 @@ class SparseRow:
     #: the colony size with this row (``--ants`` left out) by size: the first band whose
     #: ``below`` exceeds the cities; past the last band :data:`COLONY_DEFAULTS` decides
     ants: tuple[AntsBand, ...] = ()
+    #: the construction by size: the first band whose ``below`` exceeds the cities; past the
+    #: last band, ``construction`` with ``max_new_edges``
+    constructions: tuple[ConstructionBand, ...] = ()
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
@@ -121,7 +135,10 @@ class SparseRow:
 #: (chosen on the 5k selection instance), below 12,500 (on the 10k one) and below 20,000 (on
 #: the 15k one, at d15112's budget), each the lowest mean of three or four colony sizes over
 #: three run seeds; the last bound lies between measured sizes (15,112 and 100,000, where the
-#: 96-ant colony was measured). On a CPU
+#: 96-ant colony was measured). Its construction by size: 64 moves-new (each move inserting
+#: an edge the best tour lacks) below 8,000 cities and from 12,500 to 20,000, chosen on the 5k
+#: selection instance (lowest mean of six arms) and confirmed on the 15k one; the 10k one kept
+#: 128 moves. On a CPU
 #: 32 new edges city by city
 #: (best of three; full construction: ``--construction scan``). The sparse path starts from
 #: 3,000 cities on a GPU (it beat the dense path there on a selection and a report instance;
@@ -133,7 +150,14 @@ SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
               merge_ants=96,
               ants=(AntsBand(8000, 1536, "tsp-5k-h100-select-ants1536-over-bhh-mean"),
                     AntsBand(12500, 1536, "tsp-10k-h100-select-s31-a1536-over-bhh-mean"),
-                    AntsBand(20000, 1536, "tsp-15k-h100-select-ants1536-over-bhh-mean"))),
+                    AntsBand(20000, 1536, "tsp-15k-h100-select-ants1536-over-bhh-mean")),
+              constructions=(
+                  ConstructionBand(8000, "moves-new", 64,
+                                   "tsp-5k-h100-select-s32-new64-over-bhh-mean"),
+                  ConstructionBand(12500, "moves", 128,
+                                   "tsp-10k-h100-select-s32-default-over-bhh-mean"),
+                  ConstructionBand(20000, "moves-new", 64,
+                                   "tsp-15k-h100-select-s32-new64-over-bhh-mean"))),
     SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
               from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
 )
@@ -164,6 +188,21 @@ def bands_text(row: SparseRow) -> str:
 def row_ants(row: SparseRow, n: int) -> int | None:
     """The colony size ``row`` sets for ``n`` cities (None: :data:`COLONY_DEFAULTS` decides)."""
     return next((b.ants for b in row.ants if n < b.below), None)
+
+
+def row_construction(row: SparseRow, n: int) -> tuple[str, int]:
+    """(construction, max_new_edges) that ``row`` sets for ``n`` cities."""
+    band = next((b for b in row.constructions if n < b.below), None)
+    return (row.construction, row.max_new_edges) if band is None else (
+        band.construction, band.max_new_edges)
+
+
+def constructions_text(row: SparseRow) -> str:
+    """``row``'s focused construction by size in words."""
+    parts = [f"{b.max_new_edges} as {b.construction} below {b.below:,} cities"
+             for b in row.constructions]
+    last = f"{row.max_new_edges} as {row.construction}"
+    return ", ".join(parts + [f"{last} from there" if parts else last])
 
 
 def _best(k: int | None) -> str:
@@ -271,14 +310,17 @@ class TspSettings:
                                 "measured plan, the sparse path's scan; moves (sparse path, "
                                 "with --max-new-edges N: each ant is the best tour changed by "
                                 "N 2-opt moves, a loop over the moves, not the cities; "
-                                "moves-or3opt: segment-insertion moves instead)",
-                                choices=("auto", "kernel", "scan", "moves", "moves-or3opt"))
+                                "moves-new: the same, each move inserting an edge the best "
+                                "tour lacks; moves-or3opt: segment-insertion moves instead)",
+                                choices=("auto", "kernel", "scan", "moves", "moves-new",
+                                         "moves-or3opt"))
     max_new_edges: int | None = setting(None, "sparse path: Focused ACO's construction, each "
                                         "ant adds at most this many edges not in the best "
                                         "tour, then follows it (default with --construction "
                                         "auto: " + "; ".join(
-                                            f"{r.max_new_edges} as {r.construction} on a "
-                                            f"{r.backend.upper()}" for r in SPARSE_DEFAULTS)
+                                            f"on a {r.backend.upper()} "
+                                            f"{constructions_text(r)}"
+                                            for r in SPARSE_DEFAULTS)
                                         + "; --construction scan alone: full construction)")
     ls_focus_width: int | None = setting(None, "with --max-new-edges: the batched local "
                                          "search (2opt, or-2opt) starts from the ends of the "
@@ -357,7 +399,7 @@ def build(s: TspSettings) -> Built:
     max_new_edges, construction, merge = s.max_new_edges, s.construction, s.merge_ants
     if row is not None and is_sparse(problem) and max_new_edges is None \
             and construction == "auto":
-        max_new_edges, construction = row.max_new_edges, row.construction
+        construction, max_new_edges = row_construction(row, int(problem.n))
         merge = row.merge_ants if merge is None else merge
         if s.ants is None:
             ants = row_ants(row, int(problem.n)) or ants

@@ -97,7 +97,7 @@ PRESETS = ("default", "mmas", "paper")
 CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
 #: how ants build tours on the sparse path (GraphEACO.construction)
-CONSTRUCTIONS = ("ants", "moves", "moves-or3opt")
+CONSTRUCTIONS = ("ants", "moves", "moves-new", "moves-or3opt")
 
 
 @struct.dataclass
@@ -252,8 +252,9 @@ class GraphEACO(Strategy):
     max_new_edges: int | None = None
     #: sparse problems, how the ants build: "ants" (city by city, ``construction_sparse``),
     #: "moves" (the best tour so far changed by ``max_new_edges`` 2-opt moves each,
-    #: ``construction_moves``: a loop over the moves, not over the n cities) or
-    #: "moves-or3opt" (the same with segment-insertion moves, three new edges each)
+    #: ``construction_moves``: a loop over the moves, not over the n cities), "moves-new"
+    #: (the same, each move inserting an edge the best tour lacks) or "moves-or3opt" (the
+    #: same as "moves" with segment-insertion moves, three new edges each)
     construction: str = "ants"
     #: sparse problems with ``max_new_edges``: the batched searches ("2opt", "or-2opt") start
     #: from the ends of the edges an ant changed, with don't-look bits, evaluating at most this
@@ -510,7 +511,8 @@ class GraphEACO(Strategy):
                     return construct_tours_moves(
                         k_build, stacked, problem.neighbors, ref, self.max_new_edges, m + 1,
                         q0, offset, chaos_factor,
-                        kind="or3opt" if self.construction == "moves-or3opt" else "2opt")
+                        kind="or3opt" if self.construction == "moves-or3opt" else "2opt",
+                        new_only=self.construction == "moves-new")
                 return construct_tours_sparse(k_build, stacked, problem.neighbors, starts, ref,
                                               q0, offset, chaos_factor, self.max_new_edges,
                                               self._sparse_plan())

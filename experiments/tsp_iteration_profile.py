@@ -1,0 +1,131 @@
+"""Where one iteration of the sparse GPU colony spends its time (issue 33).
+
+Runs the colony of ``eaco tsp``'s sparse GPU row (``--ants`` focused ants built as moves from
+the best tour, the batched or-2opt focused on 128 cities a step, the best ants' improvements
+merged, MMAS) ``--warm`` iterations on a random uniform selection instance of
+``tsp_large.py`` (nothing is reported on it), then times, from that state, each part of an
+iteration as its own compiled call (warm, the median of ``--repeats``): the whole ``ask``,
+the construction alone (the same colony without local search and merging), the local search
+of those tours, the merge and the ``tell``. The local search's steps are counted per ant: the
+vmapped search runs as many steps as its slowest ant, so the spread of steps says how much of
+its time the other ants wait.
+
+    python experiments/tsp_iteration_profile.py --size 5000 --warm 100 --repeats 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import json
+import sys
+from pathlib import Path
+
+import jax
+import numpy as np
+from common import timed, write_results
+from tsp_large import random_instance
+
+import eaco_jax as ea
+from eaco_jax.ops import local_search
+from eaco_jax.ops.tour_merge import merge_improvements
+from eaco_jax.problems import load_tsplib
+from eaco_jax.runs.tsp import LS_FOCUS_WIDTH, sparse_defaults
+from eaco_jax.strategies.graph_eaco import GraphEACO
+
+RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "iteration_profile.json"
+
+
+def gpu_colony(ants: int) -> GraphEACO:
+    """The sparse GPU row's colony (``runs/tsp.py``) with ``ants`` ants."""
+    row = sparse_defaults("gpu")
+    return GraphEACO(num_ants=ants, local_search="or-2opt", preset="mmas",
+                     max_new_edges=row.max_new_edges, construction=row.construction,
+                     ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None)
+
+
+def profile(problem, colony: GraphEACO, warm: int, repeats: int) -> dict:
+    """The timings and step counts of one size (see the module docstring)."""
+    result = ea.minimize(problem, colony, seed=0, iterations=warm)
+    state = result.state
+    key = jax.random.PRNGKey(123)
+    bare = dataclasses.replace(colony, local_search="none", merge_ants=None)
+    ask = jax.jit(lambda k, s: colony.ask(k, s, problem))
+    build = jax.jit(lambda k, s: bare.ask(k, s, problem)[0])
+    tours0 = build(key, state)
+    ref = state.best_solution
+    focus = local_search.changed_cities(tours0, ref)
+    dist = local_search.as_distances(problem.dist)
+
+    @jax.jit
+    def search(t, a):
+        return local_search.two_opt(t, dist, problem.neighbors, None,
+                                    moves_per_step=colony.ls_moves_per_step, or_opt=True,
+                                    return_steps=True, active=a,
+                                    focus_width=colony.ls_focus_width)
+
+    searched, moves, steps = search(tours0, focus)
+    merge = jax.jit(lambda t: merge_improvements(ref, t, problem.dist, colony.merge_ants))
+    fitness = jax.jit(lambda t: problem.evaluate(t))
+    lengths = fitness(searched)
+    tell = jax.jit(lambda s, t, f: colony.tell(s, t, f, problem))
+    out = {}
+    for name, fn in (("ask", lambda: ask(key, state)),
+                     ("construction", lambda: build(key, state)),
+                     ("local_search", lambda: search(tours0, focus)),
+                     ("merge", lambda: merge(searched)),
+                     ("evaluate", lambda: fitness(searched)),
+                     ("tell", lambda: tell(state, searched, lengths))):
+        _, med = timed(fn, repeats)
+        out[f"{name}_seconds"] = med
+    steps = np.asarray(steps)
+    moves = np.asarray(moves)
+    ref_length = float(problem.exact_length(np.asarray(ref)))
+    lens = np.asarray(lengths, dtype=np.float64)
+    out.update({
+        "warm_iterations": warm, "best_after_warm": ref_length,
+        "steps_max": int(steps.max()), "steps_mean": float(steps.mean()),
+        "steps_median": float(np.median(steps)), "steps_p90": float(np.percentile(steps, 90)),
+        "moves_mean": float(moves.mean()), "moves_max": int(moves.max()),
+        "changed_cities_mean": float(np.asarray(focus).sum(axis=1).mean()),
+        "seconds_per_step": out["local_search_seconds"] / max(int(steps.max()), 1),
+        "ants_shorter_than_best": int((lens < ref_length).sum()),
+        "ants_equal_to_best": int((lens == ref_length).sum()),
+    })
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, action="append", required=True, help="repeatable")
+    ap.add_argument("--instance-seed", type=int, default=1)
+    ap.add_argument("--ants", type=int, default=1536)
+    ap.add_argument("--warm", type=int, default=100, help="iterations before the timings")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    a = ap.parse_args(argv)
+    rows = []
+    for n in a.size:
+        problem = load_tsplib(str(random_instance(a.work, n, a.instance_seed)), sparse=True)
+        row = {"n": n, "ants": a.ants, "instance_seed": a.instance_seed,
+               **profile(problem, gpu_colony(a.ants), a.warm, a.repeats)}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    print(f"{'n':>7} {'ask':>8} {'build':>8} {'search':>8} {'merge':>8} {'tell':>8} "
+          f"{'steps max/mean':>15}")
+    for r in rows:
+        print(f"{r['n']:>7} {r['ask_seconds']:8.4f} {r['construction_seconds']:8.4f} "
+              f"{r['local_search_seconds']:8.4f} {r['merge_seconds']:8.4f} "
+              f"{r['tell_seconds']:8.4f} {r['steps_max']:>6}/{r['steps_mean']:.1f}")
+    write_results(a.out, rows, date=datetime.date.today().isoformat(),
+                  command="tsp_iteration_profile.py " + " ".join(
+                      argv if argv is not None else sys.argv[1:]),
+                  seeds={"instance": a.instance_seed, "run": 0,
+                         "role": "selection instance: chooses, reports nothing"})
+    print(f"wrote {a.out}")
+
+
+if __name__ == "__main__":
+    main()
