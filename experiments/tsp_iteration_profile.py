@@ -1,16 +1,20 @@
 """Where one iteration of the sparse GPU colony spends its time (issue 33).
 
 Runs the colony of ``eaco tsp``'s sparse GPU row (``--ants`` focused ants built as moves from
-the best tour, the batched or-2opt focused on 128 cities a step, the best ants' improvements
-merged, MMAS) ``--warm`` iterations on a random uniform selection instance of
+the best tour, the row's construction for the size unless ``--construction`` and
+``--max-new-edges`` say otherwise, the batched or-2opt focused on 128 cities a step, the best
+ants' improvements merged, MMAS) ``--warm`` iterations on a random uniform selection instance of
 ``tsp_large.py`` (nothing is reported on it), then times, from that state, each part of an
 iteration as its own compiled call (warm, the median of ``--repeats``): the whole ``ask``,
 the construction alone (the same colony without local search and merging), the local search
 of those tours, the merge and the ``tell``. The local search's steps are counted per ant: the
 vmapped search runs as many steps as its slowest ant, so the spread of steps says how much of
-its time the other ants wait.
+its time the other ants wait; ``--compact FIRST,BATCH`` times the same search with the ants
+still searching after FIRST steps going on BATCH at a time (``two_opt(..., compact=)``), and
+checks that it gives the same tours.
 
-    python experiments/tsp_iteration_profile.py --size 5000 --warm 100 --repeats 5
+    python experiments/tsp_iteration_profile.py --size 5000 --warm 100 --repeats 5 \\
+        --compact 6,192 --compact 8,384
 """
 
 from __future__ import annotations
@@ -31,21 +35,25 @@ import eaco_jax as ea
 from eaco_jax.ops import local_search
 from eaco_jax.ops.tour_merge import merge_improvements
 from eaco_jax.problems import load_tsplib
-from eaco_jax.runs.tsp import LS_FOCUS_WIDTH, sparse_defaults
+from eaco_jax.runs.tsp import LS_FOCUS_WIDTH, row_construction, sparse_defaults
 from eaco_jax.strategies.graph_eaco import GraphEACO
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "iteration_profile.json"
 
 
-def gpu_colony(ants: int) -> GraphEACO:
-    """The sparse GPU row's colony (``runs/tsp.py``) with ``ants`` ants."""
+def gpu_colony(n: int, ants: int, construction: str | None = None,
+               max_new_edges: int | None = None) -> GraphEACO:
+    """The sparse GPU row's colony (``runs/tsp.py``) for ``n`` cities with ``ants`` ants; its
+    construction by size unless ``construction`` / ``max_new_edges`` are given."""
     row = sparse_defaults("gpu")
+    kind, edges = row_construction(row, n)
     return GraphEACO(num_ants=ants, local_search="or-2opt", preset="mmas",
-                     max_new_edges=row.max_new_edges, construction=row.construction,
+                     max_new_edges=max_new_edges or edges, construction=construction or kind,
                      ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None)
 
 
-def profile(problem, colony: GraphEACO, warm: int, repeats: int) -> dict:
+def profile(problem, colony: GraphEACO, warm: int, repeats: int,
+            compacts: tuple[tuple[int, int], ...] = ()) -> dict:
     """The timings and step counts of one size (see the module docstring)."""
     result = ea.minimize(problem, colony, seed=0, iterations=warm)
     state = result.state
@@ -71,6 +79,14 @@ def profile(problem, colony: GraphEACO, warm: int, repeats: int) -> dict:
     lengths = fitness(searched)
     tell = jax.jit(lambda s, t, f: colony.tell(s, t, f, problem))
     out = {}
+    for first, batch in compacts:  # the same search, the stragglers apart (same tours)
+        compacted = jax.jit(lambda t, a, c=(first, batch): local_search.two_opt(
+            t, dist, problem.neighbors, None, moves_per_step=colony.ls_moves_per_step,
+            or_opt=True, active=a, focus_width=colony.ls_focus_width, compact=c))
+        same = bool(np.array_equal(np.asarray(compacted(tours0, focus)), np.asarray(searched)))
+        _, med = timed(lambda f=compacted: f(tours0, focus), repeats)
+        out[f"local_search_compact_{first}_{batch}_seconds"] = med
+        out[f"local_search_compact_{first}_{batch}_same_tours"] = same
     for name, fn in (("ask", lambda: ask(key, state)),
                      ("construction", lambda: build(key, state)),
                      ("local_search", lambda: search(tours0, focus)),
@@ -103,14 +119,24 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--ants", type=int, default=1536)
     ap.add_argument("--warm", type=int, default=100, help="iterations before the timings")
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--construction", default=None,
+                    help="moves / moves-new / moves-or3opt (default: the row's for the size)")
+    ap.add_argument("--max-new-edges", type=int, default=None,
+                    help="moves per ant (default: the row's for the size)")
+    ap.add_argument("--compact", action="append", default=[],
+                    help="FIRST_STEPS,BATCH: also time the search with the stragglers apart "
+                         "(repeatable)")
     ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
     rows = []
     for n in a.size:
         problem = load_tsplib(str(random_instance(a.work, n, a.instance_seed)), sparse=True)
+        colony = gpu_colony(n, a.ants, a.construction, a.max_new_edges)
         row = {"n": n, "ants": a.ants, "instance_seed": a.instance_seed,
-               **profile(problem, gpu_colony(a.ants), a.warm, a.repeats)}
+               "construction": colony.construction, "max_new_edges": colony.max_new_edges,
+               **profile(problem, colony, a.warm, a.repeats,
+                         tuple(tuple(int(x) for x in c.split(",")) for c in a.compact))}
         rows.append(row)
         print(json.dumps(row), flush=True)
     print(f"{'n':>7} {'ask':>8} {'build':>8} {'search':>8} {'merge':>8} {'tell':>8} "

@@ -90,3 +90,62 @@ def test_a_move_wakes_the_ends_of_the_edges_it_removed(broken):
                          return_moves=True)
     assert int(np.asarray(moves)[0]) > n // 2
     assert _length(d, out)[0] < 0.5 * _length(d, tours)[0]
+
+
+@pytest.fixture(scope="module")
+def uneven():
+    """Nine broken local optima, broken by 1 to 9 reversals: searches of uneven length."""
+    n, m = 200, 9
+    d, nb = _instance(n, 3)
+    rng = np.random.default_rng(4)
+    opt = np.asarray(two_opt(np.stack([rng.permutation(n) for _ in range(m)]).astype(np.int32),
+                             d, nb, or_opt=True))
+    pert = opt.copy()
+    for i, row in enumerate(pert):
+        for _ in range(i + 1):
+            a, b = sorted(rng.choice(n, 2, replace=False))
+            row[a:b] = row[a:b][::-1].copy()
+    focus = np.stack([np.asarray(changed_cities(pert[i:i + 1], opt[i]))[0] for i in range(m)])
+    return d, nb, pert, focus
+
+
+@pytest.mark.parametrize("compact", [(0, 1), (1, 2), (2, 4), (3, 9), (2, 20)])
+def test_compacted_focused_search_gives_the_same_tours_moves_and_steps(uneven, compact):
+    d, nb, pert, focus = uneven
+    want = [np.asarray(x) for x in two_opt(pert, d, nb, or_opt=True, active=focus,
+                                           focus_width=4, return_steps=True)]
+    assert want[2].max() > 2 * max(compact[0], 1) and want[2].min() < want[2].max()
+    got = [np.asarray(x) for x in two_opt(pert, d, nb, or_opt=True, active=focus,
+                                          focus_width=4, return_steps=True, compact=compact)]
+    for w, g in zip(want, got, strict=True):
+        np.testing.assert_array_equal(g, w)
+
+
+def test_compact_refuses_a_batch_below_one(uneven):
+    from eaco_jax.errors import ConfigError
+
+    d, nb, pert, focus = uneven
+    with pytest.raises(ConfigError, match="batch >= 1"):
+        two_opt(pert, d, nb, active=focus, compact=(2, 0))
+
+
+def test_a_colony_with_ls_compact_builds_the_same_tours():
+    import dataclasses
+
+    import jax
+
+    from eaco_jax.errors import ConfigError
+    from eaco_jax.problems.tsp_sparse import SparseTSP
+    from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    xy = np.random.default_rng(5).integers(0, 10_000, (150, 2))
+    problem = SparseTSP.from_coords(xy, neighbors=8)
+    plain = GraphEACO(num_ants=6, local_search="or-2opt", preset="mmas", max_new_edges=16,
+                      construction="moves-new", ls_focus_width=4)
+    compact = dataclasses.replace(plain, ls_compact=(1, 2))
+    state = plain.init(jax.random.key(0), problem)
+    a, _ = plain.ask(jax.random.key(1), state, problem)
+    b, _ = compact.ask(jax.random.key(1), state, problem)
+    np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    with pytest.raises(ConfigError, match="ls_compact"):
+        GraphEACO(ls_compact=(1, 0))

@@ -327,19 +327,10 @@ def _apply_proposals(tour: Array, pos: Array, two: tuple[Array, Array, Array],
         rev=jnp.concatenate([jnp.zeros(m, bool), orev]), acceptance=acceptance)
 
 
-def _focused_one(
-    tour: Array, pos0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
-    per_step: int, or_opt: bool, acceptance: str, active0: Array, width: int,
-) -> tuple[Array, Array, Array]:
-    """The batched search of one tour from the cities ``active0`` only (don't-look bits, as
-    Focused ACO searches an ant that changed a few edges of the best tour): each step
-    evaluates the moves of at most ``width`` active cities (the first in index order), not of
-    all ``n``; applies the best disjoint improving ones as :func:`_two_opt_one` does; clears
-    the bit of every evaluated city without an improving move and sets the bits of both ends
-    of every edge the step removed. It ends when no bit is set (or after ``max_moves``): a
-    tour that is a local optimum except near a few changed edges costs O(width k) a step
-    instead of O(n k), plus the O(n) rewrite of the tour."""
-    n = tour.shape[0]
+def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_step: int,
+                 or_opt: bool, acceptance: str, width: int, n: int):
+    """(body, live) of one tour's focused search (:func:`_focused_one`): a step on the carry
+    ``(tour, pos, active, moves, steps)``, and whether the search goes on."""
     slots = jnp.arange(width)
 
     def body(carry):
@@ -366,14 +357,72 @@ def _focused_one(
         same = ((new_s == succ) & (new_p == pred)) | ((new_s == pred) & (new_p == succ))
         return tour, pos, active | ~same, moves + applied, steps + 1
 
-    def cond(carry):
+    def live(carry):
         _, _, active, moves, _ = carry
         return jnp.any(active) & (moves < max_moves)
 
+    return body, live
+
+
+def _focused_one(
+    tour: Array, pos0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
+    per_step: int, or_opt: bool, acceptance: str, active0: Array, width: int,
+) -> tuple[Array, Array, Array]:
+    """The batched search of one tour from the cities ``active0`` only (don't-look bits, as
+    Focused ACO searches an ant that changed a few edges of the best tour): each step
+    evaluates the moves of at most ``width`` active cities (the first in index order), not of
+    all ``n``; applies the best disjoint improving ones as :func:`_two_opt_one` does; clears
+    the bit of every evaluated city without an improving move and sets the bits of both ends
+    of every edge the step removed. It ends when no bit is set (or after ``max_moves``): a
+    tour that is a local optimum except near a few changed edges costs O(width k) a step
+    instead of O(n k), plus the O(n) rewrite of the tour."""
+    n = tour.shape[0]
+    body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
+                              width, n)
     zero = jnp.int32(0)
     tour, _, _, moves, steps = jax.lax.while_loop(
-        cond, body, (tour, pos0, jnp.asarray(active0, bool), zero, zero))
+        live, body, (tour, pos0, jnp.asarray(active0, bool), zero, zero))
     return tour, moves, steps
+
+
+def _focused_compacted(
+    tours: Array, active0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
+    per_step: int, or_opt: bool, acceptance: str, width: int, first_steps: int, batch: int,
+) -> tuple[Array, Array, Array]:
+    """:func:`_focused_one` of every tour, the same tours, moves and steps, without the whole
+    colony waiting for its slowest ant: every ant runs at most ``first_steps`` steps, then the
+    ants still searching go on ``batch`` at a time (unfinished first), each batch until its
+    last ant is done. A vmapped loop runs as many steps as its slowest ant, and most focused
+    searches end within a few steps."""
+    m, n = tours.shape
+    body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
+                              width, n)
+    batch = min(int(batch), m)
+    cities = jnp.arange(n, dtype=jnp.int32)
+    pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
+    zeros = jnp.zeros((m,), jnp.int32)
+    carry = (tours, pos0, jnp.asarray(active0, bool), zeros, zeros)
+
+    def capped(c):
+        return jax.lax.while_loop(lambda x: live(x) & (x[4] < first_steps), body, c)
+
+    carry = jax.vmap(capped)(carry)
+    still = jax.vmap(live)(carry)
+    order = jnp.argsort(~still, stable=True).astype(jnp.int32)  # unfinished ants first
+    count = jnp.sum(still)
+
+    def chunk(state):
+        c, carry = state
+        # a start past m - batch is clamped: the overlap holds finished ants, left as they are
+        ids = jax.lax.dynamic_slice(order, (c * batch,), (batch,))
+        sub = jax.tree_util.tree_map(lambda x: x[ids], carry)
+        sub = jax.vmap(lambda x: jax.lax.while_loop(live, body, x))(sub)
+        carry = jax.tree_util.tree_map(lambda x, y: x.at[ids].set(y), carry, sub)
+        return c + 1, carry
+
+    _, carry = jax.lax.while_loop(lambda st: st[0] * batch < count, chunk,
+                                  (jnp.int32(0), carry))
+    return carry[0], carry[3], carry[4]
 
 
 def _two_opt_one(
@@ -422,7 +471,7 @@ def _two_opt_one(
 
 
 @partial(jax.jit, static_argnames=("max_moves", "return_moves", "moves_per_step", "or_opt",
-                                   "return_steps", "acceptance", "focus_width"))
+                                   "return_steps", "acceptance", "focus_width", "compact"))
 def two_opt(
     tours: Array,
     dist: Array,
@@ -435,6 +484,7 @@ def two_opt(
     acceptance: str = "rounds",
     active: Array | None = None,
     focus_width: int = 128,
+    compact: tuple[int, int] | None = None,
 ) -> Array | tuple[Array, Array] | tuple[Array, Array, Array]:
     """2-opt (and Or-opt) local search of every tour in ``tours`` ``(m, n)`` to a local optimum.
 
@@ -456,6 +506,8 @@ def two_opt(
         (:func:`_focused_one`; Focused ACO: the ends of the edges an ant changed,
         :func:`changed_cities`). None: every city, every step.
       focus_width: with ``active``, the most cities a step evaluates.
+      compact: with ``active``, ``(first_steps, batch)``: the same search without the colony
+        waiting for its slowest ant (:func:`_focused_compacted`); None: one vmapped loop.
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
@@ -479,9 +531,18 @@ def two_opt(
         if focus_width < 1:
             raise ConfigError(f"focus_width must be >= 1, got {focus_width}")
         width = min(int(focus_width), n)
-        out, moves, steps = jax.vmap(
-            lambda t, a: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,
-                                      acceptance, a, width))(tours, active)
+        if compact is not None:
+            first_steps, batch = (int(x) for x in compact)
+            if first_steps < 0 or batch < 1:
+                raise ConfigError(f"compact=(first_steps, batch) needs first_steps >= 0 and "
+                                  f"batch >= 1, got {compact}")
+            out, moves, steps = _focused_compacted(
+                tours, active, dist, cand, cand_d, mm, moves_per_step, or_opt, acceptance,
+                width, first_steps, batch)
+        else:
+            out, moves, steps = jax.vmap(
+                lambda t, a: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,
+                                          acceptance, a, width))(tours, active)
     if return_steps:
         return out, moves, steps
     return (out, moves) if return_moves else out

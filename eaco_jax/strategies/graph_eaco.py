@@ -265,6 +265,10 @@ class GraphEACO(Strategy):
     #: (the largest gains over the best tour, touching disjoint cities, the merge one tour)
     #: into one tour that takes the worst ant's place (``ops/tour_merge.py``; None: off)
     merge_ants: int | None = None
+    #: the focused batched search without the colony waiting for its slowest ant:
+    #: (first_steps, batch), see ``ops.local_search.two_opt`` (the same tours; a cost choice;
+    #: None: one vmapped loop)
+    ls_compact: tuple[int, int] | None = None
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -294,6 +298,11 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         if self.ls_focus_width is not None and self.ls_focus_width < 1:
             raise ConfigError(f"ls_focus_width must be >= 1 or None, got {self.ls_focus_width}")
+        if self.ls_compact is not None and (
+                len(self.ls_compact) != 2 or int(self.ls_compact[0]) < 0
+                or int(self.ls_compact[1]) < 1):
+            raise ConfigError(f"ls_compact must be (first_steps >= 0, batch >= 1) or None, got "
+                              f"{self.ls_compact!r}")
         if self.merge_ants is not None:
             if isinstance(self.merge_ants, bool) or not isinstance(self.merge_ants, int) \
                     or self.merge_ants < 2:
@@ -604,7 +613,8 @@ class GraphEACO(Strategy):
                 return local_search.two_opt(t, dist, neighbors, self.max_ls_moves,
                                             moves_per_step=self.ls_moves_per_step,
                                             or_opt=self.local_search == "or-2opt", active=a,
-                                            focus_width=self.ls_focus_width or 1)
+                                            focus_width=self.ls_focus_width or 1,
+                                            compact=None if a is None else self.ls_compact)
         else:
             def improve(t, a=None):
                 return local_search.dlb_local_search(
