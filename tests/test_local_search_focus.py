@@ -142,7 +142,8 @@ def test_a_colony_with_ls_compact_builds_the_same_tours():
     problem = SparseTSP.from_coords(xy, neighbors=8)
     plain = GraphEACO(num_ants=6, local_search="or-2opt", preset="mmas", max_new_edges=16,
                       construction="moves-new", ls_focus_width=4)
-    compact = dataclasses.replace(plain, ls_compact=(1, 2))
+    compact = dataclasses.replace(plain, ls_compact=[1, 2])  # a list, as from JSON
+    assert compact.ls_compact == (1, 2)
     state = plain.init(jax.random.key(0), problem)
     a, _ = plain.ask(jax.random.key(1), state, problem)
     b, _ = compact.ask(jax.random.key(1), state, problem)

@@ -298,11 +298,13 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         if self.ls_focus_width is not None and self.ls_focus_width < 1:
             raise ConfigError(f"ls_focus_width must be >= 1 or None, got {self.ls_focus_width}")
-        if self.ls_compact is not None and (
-                len(self.ls_compact) != 2 or int(self.ls_compact[0]) < 0
-                or int(self.ls_compact[1]) < 1):
-            raise ConfigError(f"ls_compact must be (first_steps >= 0, batch >= 1) or None, got "
-                              f"{self.ls_compact!r}")
+        if self.ls_compact is not None:
+            if len(self.ls_compact) != 2 or int(self.ls_compact[0]) < 0 \
+                    or int(self.ls_compact[1]) < 1:
+                raise ConfigError(f"ls_compact must be (first_steps >= 0, batch >= 1) or None, "
+                                  f"got {self.ls_compact!r}")
+            # a tuple of ints: a static argument of the compiled search (a list is unhashable)
+            object.__setattr__(self, "ls_compact", tuple(int(x) for x in self.ls_compact))
         if self.merge_ants is not None:
             if isinstance(self.merge_ants, bool) or not isinstance(self.merge_ants, int) \
                     or self.merge_ants < 2:
