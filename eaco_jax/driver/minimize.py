@@ -45,6 +45,7 @@ from eaco_jax.driver.programs import (  # noqa: F401  (re-exported)
     budget_arg,
     clear_compiled,
     compiled_chunk,
+    device_view,
     iteration_step,
     make_chunk_fn,
     signature,
@@ -294,6 +295,7 @@ def run(
     batched = len(seeds) > 1
     capped = max_evaluations is not None
     budget = budget_arg(max_evaluations)
+    device = device_view(problem)  # what the compiled chunks take
     done = 0
     history: list[dict[str, Any]] = []  # chunks not yet in the checkpoint's history log
     tally = _NanTally(strategy.num_ants, batched)
@@ -352,7 +354,7 @@ def run(
                     compiled, seconds = reuse, 0.0
                 else:
                     try:
-                        compiled, seconds = compiled_chunk(strategy, chunk, batched, problem,
+                        compiled, seconds = compiled_chunk(strategy, chunk, batched, device,
                                                            state, capped, interrupted=signals)
                     except CompileInterrupted:
                         continue  # the stop reason sees the signal
@@ -365,7 +367,7 @@ def run(
                 t0 = time.perf_counter()
                 if length not in lengths:
                     lengths[length] = jnp.int32(length)
-                args = (problem, state, lengths[length]) + ((budget,) if capped else ())
+                args = (device, state, lengths[length]) + ((budget,) if capped else ())
                 signals.at = done + length
                 try:
                     before = state

@@ -144,6 +144,15 @@ def _make_room() -> None:
         gc.collect()
 
 
+def device_view(problem: Any) -> Any:
+    """``problem`` as compiled programs take it: without host-only metadata (a problem's
+    ``device_view()``, e.g. a TSP's name, optimum and coordinates as read), which would
+    otherwise enter the programs' keys, so that a new instance of the same shapes and
+    settings reuses a compiled program instead of tracing it again."""
+    view = getattr(problem, "device_view", None)
+    return problem if view is None else view()
+
+
 def signature(tree: Any) -> tuple:
     """Shapes, dtypes and shardings of ``tree``'s leaves: what a compiled chunk is bound to."""
     leaves, treedef = jax.tree_util.tree_flatten(tree)

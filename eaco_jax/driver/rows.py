@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from eaco_jax.driver.programs import compiled_init
+from eaco_jax.driver.programs import compiled_init, device_view
 from eaco_jax.errors import ConfigError, ProblemError
 from eaco_jax.strategies.base import State, Strategy
 
@@ -41,21 +41,22 @@ def compiled_initial(strategy: Strategy, problem: Any, seeds: Sequence[int],
     ``init(*args)`` for the state) and the seconds spent on it now; nothing is run, so the
     state's size can be checked from the program before anything is allocated."""
     problem = strategy.prepare(problem)
+    device = device_view(problem)  # what the compiled initialiser takes
     if isinstance(params, list | tuple):
         for i, p in enumerate(params):
             strategy.check_params(p, where=f"params[{i}]: " if len(params) > 1 else "")
         stacked = stack_params(list(params))
         flat = jax.tree.map(lambda x: jnp.repeat(x, len(seeds), axis=0), stacked)
         keys = jnp.stack([jax.random.key(int(s)) for s in list(seeds) * len(params)])
-        init, seconds = compiled_init(strategy, "per_row", problem, keys, flat)
-        return init, (keys, problem, flat), seconds
+        init, seconds = compiled_init(strategy, "per_row", device, keys, flat)
+        return init, (keys, device, flat), seconds
     keys = jnp.stack([jax.random.key(int(s)) for s in seeds])
     if params is None:
         params = strategy.default_params(problem)
     strategy.check_params(params)
     rows = "one" if len(seeds) == 1 else "shared"
-    init, seconds = compiled_init(strategy, rows, problem, keys, params)
-    return init, (keys, problem, params), seconds
+    init, seconds = compiled_init(strategy, rows, device, keys, params)
+    return init, (keys, device, params), seconds
 
 
 def stack_params(params: Sequence[Any]) -> Any:

@@ -169,6 +169,11 @@ class TSP:
         """Number of cities."""
         return self.dist.shape[-1]
 
+    def device_view(self) -> TSP:
+        """This problem without its host-only metadata (name, optimum): what compiled programs
+        take, so that one program serves every instance of the same size and settings."""
+        return self.replace(name="custom", optimum=None)
+
     def evaluate(self, tours: jax.Array) -> Any:
         """Closed-tour lengths ``(m,)`` of tours ``(m, n)``.
 

@@ -213,6 +213,12 @@ class SparseTSP:
         """Distances computed from the coordinates when read (``dist[a, b]``)."""
         return CoordDistances(self.coords, self.metric, self.exact)
 
+    def device_view(self) -> SparseTSP:
+        """This problem without its host-only metadata (coordinates as read, name, optimum):
+        what compiled programs take, so that one program serves every instance of the same
+        size and settings (the exact host length needs ``host_coords``: keep the original)."""
+        return self.replace(host_coords=None, name="custom", optimum=None)
+
     def evaluate(self, tours: jax.Array) -> Any:
         """Closed-tour lengths ``(m,)``: traced, float32 (exact integer sums rounded once);
         from the host, checked tours and float64 lengths (:meth:`exact_length`)."""
