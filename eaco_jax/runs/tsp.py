@@ -127,6 +127,9 @@ class SparseRow:
     #: the construction by size: the first band whose ``below`` exceeds the cities; past the
     #: last band, ``construction`` with ``max_new_edges``
     constructions: tuple[ConstructionBand, ...] = ()
+    #: the tour the focused ants change (``--reference auto``), chosen by ``reference_claim``
+    reference: str = "best"
+    reference_claim: str = ""
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
@@ -334,6 +337,13 @@ class TspSettings:
                                      "auto and no --max-new-edges: " + "; ".join(
                                          f"{r.merge_ants} on a {r.backend.upper()}"
                                          for r in SPARSE_DEFAULTS) + "; otherwise 0)")
+    reference: str = setting("auto", "with --max-new-edges: the tour the ants change, search "
+                             "from and merge into: best (the best so far), iteration (the "
+                             "last iteration's best, the best so far with probability 0.01, "
+                             "as Focused ACO's source solution); auto: " + "; ".join(
+                                 f"{r.reference} on a {r.backend.upper()}"
+                                 for r in SPARSE_DEFAULTS) + " with the default construction, "
+                             "else best", choices=("auto", "best", "iteration"))
     chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
                                           "compiled call about this many seconds' worth of "
                                           "iterations at the last call's pace (the sparse "
@@ -397,10 +407,12 @@ def build(s: TspSettings) -> Built:
     ls_best_k = auto.ls_best_k if s.ls_best_k is None else int(s.ls_best_k)
     preset = auto.preset if s.preset == "auto" else s.preset
     max_new_edges, construction, merge = s.max_new_edges, s.construction, s.merge_ants
+    reference = "best" if s.reference == "auto" else s.reference
     if row is not None and is_sparse(problem) and max_new_edges is None \
             and construction == "auto":
         construction, max_new_edges = row_construction(row, int(problem.n))
         merge = row.merge_ants if merge is None else merge
+        reference = row.reference if s.reference == "auto" else reference
         if s.ants is None:
             ants = row_ants(row, int(problem.n)) or ants
     elif row is not None and is_sparse(problem) and s.ants is None \
@@ -413,7 +425,7 @@ def build(s: TspSettings) -> Built:
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=max_new_edges,
                          ls_focus_width=(focus or None) if max_new_edges is not None else None,
-                         merge_ants=merge or None,
+                         merge_ants=merge or None, reference=reference,
                          construction=(construction if construction.startswith("moves")
                                        else "ants"),
                          construction_fallback=("auto" if construction.startswith("moves")
@@ -462,7 +474,8 @@ def focused_settings(st: Any, given: str, sparse: bool) -> dict[str, Any]:
     else:
         construction = "scan" if sparse and given == "auto" else given
     return {"max_new_edges": st.max_new_edges, "construction": construction,
-            "ls_focus_width": st.ls_focus_width or 0, "merge_ants": st.merge_ants or 0}
+            "ls_focus_width": st.ls_focus_width or 0, "merge_ants": st.merge_ants or 0,
+            "reference": st.reference}
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:

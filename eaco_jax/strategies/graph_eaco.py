@@ -98,6 +98,8 @@ CROSSOVERS = ("erx", "pmx", "none")
 MUTATIONS = ("inversion", "swap", "none")
 #: how ants build tours on the sparse path (GraphEACO.construction)
 CONSTRUCTIONS = ("ants", "moves", "moves-new", "moves-or3opt")
+#: the tour focused ants change (:attr:`GraphEACO.reference`)
+REFERENCES = ("best", "iteration")
 
 
 @struct.dataclass
@@ -172,6 +174,7 @@ class SparseGraphState(GraphState):
     """The state on a sparse problem: ``tau`` is (n, k), on the candidate edges."""
 
     first_tour: Array  # (n,) the Hilbert-curve tour after local search: the first reference
+    source: Array  # (n,) the last iteration's best tour (the first tour before one)
 
 
 def acotsp_ls_branching(n: int, p_best: float = 0.05) -> float:
@@ -269,6 +272,12 @@ class GraphEACO(Strategy):
     #: (first_steps, batch), see ``ops.local_search.two_opt`` (the same tours; a cost choice;
     #: None: one vmapped loop)
     ls_compact: tuple[int, int] | None = None
+    #: sparse problems with ``max_new_edges``: the tour the ants change, search from and merge
+    #: into: "best" (the best so far) or "iteration" (the last iteration's best, and with
+    #: probability ``reference_best_prob`` the best so far: Focused ACO's source solution,
+    #: which can get worse and so leaves a local optimum the best so far holds on to)
+    reference: str = "best"
+    reference_best_prob: float = 0.01
     problem_kind: ClassVar[str] = "graph"
 
     def __post_init__(self) -> None:
@@ -305,6 +314,11 @@ class GraphEACO(Strategy):
                                   f"got {self.ls_compact!r}")
             # a tuple of ints: a static argument of the compiled search (a list is unhashable)
             object.__setattr__(self, "ls_compact", tuple(int(x) for x in self.ls_compact))
+        if self.reference not in REFERENCES:
+            raise ConfigError(f"reference={self.reference!r} is not one of {REFERENCES}")
+        if not 0.0 <= float(self.reference_best_prob) <= 1.0:
+            raise ConfigError(f"reference_best_prob must be in [0, 1], got "
+                              f"{self.reference_best_prob!r}")
         if self.merge_ants is not None:
             if isinstance(self.merge_ants, bool) or not isinstance(self.merge_ants, int) \
                     or self.merge_ants < 2:
@@ -440,7 +454,8 @@ class GraphEACO(Strategy):
         tau_max, _ = self._bounds(params.replace(use_bounds=jnp.bool_(True)), nn_length, n)
         tau0 = jnp.where(params.init_at_tau_max, tau_max, pheromone.initial_tau(n, nn_length))
         return SparseGraphState(**self._fresh_fields(key, k_chaos, params, n, nn_length),
-                                tau=jnp.full(nbr.shape, tau0, jnp.float32), first_tour=first)
+                                tau=jnp.full(nbr.shape, tau0, jnp.float32), first_tour=first,
+                                source=first)
 
     def _fresh_fields(self, key: Array, k_chaos: Array, params: GraphParams, n: int,
                       nn_length: Array) -> dict[str, Any]:
@@ -515,6 +530,9 @@ class GraphEACO(Strategy):
         # what focused ants change and search from, and what merging improves on
         ref = jnp.where(jnp.isfinite(state.best_cost), state.best_solution,
                         state.first_tour) if sparse else None
+        if sparse and self.reference == "iteration":  # a key of its own: the split is kept
+            coin = jax.random.uniform(jax.random.fold_in(key, 5)) < self.reference_best_prob
+            ref = jnp.where(coin, ref, state.source)
 
         def build(chaos_factor):
             if sparse:
@@ -715,6 +733,8 @@ class GraphEACO(Strategy):
             restart_best_cost=jnp.where(restart, jnp.inf, rb_cost).astype(jnp.float32),
             restarts=state.restarts + restart.astype(jnp.int32),
         )
+        if isinstance(state, SparseGraphState):  # the next iteration's "iteration" reference
+            state = state.replace(source=solutions[i_best])
         metrics = {
             "diversity": jnp.clip(diversity, 0.0, 1.0).astype(jnp.float32),
             "rho_t": rho_t.astype(jnp.float32),
