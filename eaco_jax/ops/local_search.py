@@ -149,7 +149,8 @@ def _apply_disjoint(
     span: Array | None = None,
     rev: Array | None = None,
     acceptance: str = "rounds",
-) -> tuple[Array, Array, Array]:
+    ends: bool = False,
+) -> tuple[Array, ...]:
     """Apply several improving moves at once, greedily by gain, if they touch disjoint edges.
 
     ``gain``/``lo``/``hi`` describe one candidate move per entry on the positions
@@ -160,7 +161,8 @@ def _apply_disjoint(
     (Or-opt). Of the ``top`` best, a move is accepted when its edge range is disjoint from
     every better accepted one; such moves commute and their gains add up, so all of them are
     applied in one O(n) pass (``acceptance``: see :data:`ACCEPTANCES`). Returns (tour, pos,
-    applied).
+    applied), and with ``ends`` also the cities at the ends of the edges the accepted moves
+    removed ``(6 top,)`` (the only cities whose tour neighbours can change; ``n`` for none).
     """
     n = tour.shape[0]
     top = min(top, gain.shape[0])
@@ -175,14 +177,22 @@ def _apply_disjoint(
     acc = greedy(top_g > 0, overlap, budget)
     one = acc.astype(jnp.int32)
     idx = jnp.arange(n, dtype=jnp.int32)
+    if ends:  # old positions at the ends of every removed edge (edge e: e and e + 1)
+        if kind is None:
+            cut = jnp.stack([tl - 1, tl, tl - 1, tl, th, th + 1], axis=1)
+        else:
+            ln_t = span[top_i]
+            mid = jnp.where(kind[top_i] == SEGMENT_TO_END, tl + ln_t - 1, th - ln_t)
+            cut = jnp.stack([tl - 1, tl, mid, mid + 1, th, th + 1], axis=1)
+        cut_cities = jnp.where(acc[:, None], tour[cut % n], n).reshape(-1)
     if kind is None:  # reversals only: the piecewise reflection p -> lo + hi - p
         w = jnp.where(acc, tl + th, 0)
         mirror = jnp.zeros(n + 1, jnp.int32).at[tl].add(w).at[th + 1].add(-w).cumsum()[:n]
         inside = jnp.zeros(n + 1, jnp.int32).at[tl].add(one).at[th + 1].add(-one).cumsum()[:n]
         inside = inside > 0
         tour = tour[jnp.where(inside, mirror - idx, idx)]
-        pos = jnp.where(inside[pos], mirror[pos] - pos, pos)
-        return tour, pos, one.sum()
+        pos = _moved_positions(pos, tour, inside, idx)
+        return (tour, pos, one.sum()) + ((cut_cities,) if ends else ())
     # the accepted move (if any) that owns each position, by a prefix sum over the ranges
     label = jnp.where(acc, jnp.arange(1, top + 1, dtype=jnp.int32), 0)
     owner = jnp.zeros(n + 1, jnp.int32).at[tl].add(label).at[th + 1].add(-label).cumsum()[:n]
@@ -207,7 +217,17 @@ def _apply_disjoint(
     dst = jnp.where((kd == SEGMENT_TO_END) & (idx >= a + ln), idx - ln, dst)
     dst = jnp.where((kd == SEGMENT_TO_FRONT) & (idx > b - ln), a + seg(idx - (b - ln + 1)), dst)
     dst = jnp.where((kd == SEGMENT_TO_FRONT) & (idx <= b - ln), idx + ln, dst)
-    return tour[src], dst[pos], one.sum()
+    tour = tour[src]
+    return (tour, _moved_positions(pos, tour, inside, idx), one.sum()) + (
+        (cut_cities,) if ends else ())
+
+
+def _moved_positions(pos: Array, tour: Array, inside: Array, idx: Array) -> Array:
+    """``pos`` of the new ``tour`` rewritten at the positions ``inside`` the accepted moves'
+    ranges only (a scatter of those; the rest keep theirs): no gather of all ``n`` cities'
+    positions through a random permutation."""
+    n = tour.shape[0]
+    return pos.at[jnp.where(inside, tour, n)].set(idx, mode="drop")
 
 
 def _or_opt_moves(
@@ -310,13 +330,14 @@ def _two_opt_moves(pos: Array, succ: Array, pred: Array, dist: Array, cand: Arra
 
 def _apply_proposals(tour: Array, pos: Array, two: tuple[Array, Array, Array],
                      orr: tuple[Array, ...] | None, per_step: int, budget: Array,
-                     acceptance: str) -> tuple[Array, Array, Array]:
+                     acceptance: str, ends: bool = False) -> tuple[Array, ...]:
     """Apply the best disjoint of a step's proposals: ``two`` = (gain, lo, hi) of 2-opt
     reversals, and with ``orr`` = (gain, lo, hi, kind, span, rev) of Or-opt moves competing
     in the same batch (gains ``-inf`` where nothing improves); see :func:`_apply_disjoint`."""
     gain, lo, hi = two
     if orr is None:
-        return _apply_disjoint(tour, pos, gain, lo, hi, per_step, budget, acceptance=acceptance)
+        return _apply_disjoint(tour, pos, gain, lo, hi, per_step, budget, acceptance=acceptance,
+                               ends=ends)
     og, olo, ohi, okind, ospan, orev = orr
     m = gain.shape[0]
     return _apply_disjoint(
@@ -324,7 +345,19 @@ def _apply_proposals(tour: Array, pos: Array, two: tuple[Array, Array, Array],
         jnp.concatenate([hi, ohi]), per_step, budget,
         kind=jnp.concatenate([jnp.full(m, REVERSE, jnp.int32), okind]),
         span=jnp.concatenate([jnp.zeros(m, jnp.int32), ospan]),
-        rev=jnp.concatenate([jnp.zeros(m, bool), orev]), acceptance=acceptance)
+        rev=jnp.concatenate([jnp.zeros(m, bool), orev]), acceptance=acceptance, ends=ends)
+
+
+class _Beside:
+    """The successor (``step`` 1) or predecessor (-1) of the cities it is indexed with, read
+    from (tour, pos) for those cities only: a focused step reads O(width k) of them, not the
+    O(n) array of every city's."""
+
+    def __init__(self, tour: Array, pos: Array, step: int) -> None:
+        self.tour, self.pos, self.step = tour, pos, step
+
+    def __getitem__(self, x: Array) -> Array:
+        return self.tour[(self.pos[x] + self.step) % self.tour.shape[0]]
 
 
 def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_step: int,
@@ -335,8 +368,7 @@ def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_st
 
     def body(carry):
         tour, pos, active, moves, steps = carry
-        succ = tour[(pos + 1) % n]
-        pred = tour[(pos - 1) % n]
+        succ, pred = _Beside(tour, pos, 1), _Beside(tour, pos, -1)
         at = jnp.nonzero(active, size=width, fill_value=0)[0].astype(jnp.int32)
         valid = slots < jnp.sum(active)
         gain, lo, hi = _two_opt_moves(pos, succ, pred, dist, cand, cand_d, at)
@@ -348,14 +380,18 @@ def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_st
             og = jnp.where(valid & (og > 0), og, -jnp.inf)
             found = found | (og > 0)
             orr = (og, *rest)
-        tour, pos, applied = _apply_proposals(tour, pos, (gain, lo, hi), orr, per_step,
-                                              max_moves - moves, acceptance)
+        new_tour, new_pos, applied, cut = _apply_proposals(
+            tour, pos, (gain, lo, hi), orr, per_step, max_moves - moves, acceptance, ends=True)
         # evaluated, nothing to gain: bit cleared (the padding slots touch nothing)
         active = active.at[jnp.where(valid & ~found, at, n)].set(False, mode="drop")
-        # both ends of every removed edge: the cities whose pair of tour neighbours changed
-        new_s, new_p = tour[(pos + 1) % n], tour[(pos - 1) % n]
-        same = ((new_s == succ) & (new_p == pred)) | ((new_s == pred) & (new_p == succ))
-        return tour, pos, active | ~same, moves + applied, steps + 1
+        # of the ends of every removed edge, the cities whose pair of tour neighbours changed
+        # (no other city's can): bit set
+        c = jnp.minimum(cut, n - 1)
+        s0, p0 = succ[c], pred[c]
+        s1, p1 = _Beside(new_tour, new_pos, 1)[c], _Beside(new_tour, new_pos, -1)[c]
+        same = ((s1 == s0) & (p1 == p0)) | ((s1 == p0) & (p1 == s0))
+        active = active.at[jnp.where(same, n, cut)].set(True, mode="drop")
+        return new_tour, new_pos, active, moves + applied, steps + 1
 
     def live(carry):
         _, _, active, moves, _ = carry
