@@ -150,3 +150,46 @@ def test_a_colony_with_ls_compact_builds_the_same_tours():
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     with pytest.raises(ConfigError, match="ls_compact"):
         GraphEACO(ls_compact=(1, 0))
+
+
+@pytest.mark.parametrize("or_opt", [False, True])
+def test_a_step_names_exactly_the_cities_whose_tour_neighbours_changed(or_opt):
+    # the focused step wakes the ends of the removed edges it is told of (_apply_disjoint's
+    # ends), not every city whose neighbours it compares: those must be the same cities, for
+    # reversals and for both kinds of segment move
+    import jax.numpy as jnp
+
+    from eaco_jax.ops import local_search as ls
+
+    n = 200
+    d, nb = _instance(n, seed=4)
+    dist, cand = jnp.asarray(d), jnp.asarray(nb)
+    cand_d = dist[jnp.arange(n)[:, None], cand]
+    rng = np.random.default_rng(2)
+    kinds = set()
+    for _ in range(12):
+        tour = jnp.asarray(rng.permutation(n).astype(np.int32))
+        pos = jnp.zeros(n, jnp.int32).at[tour].set(jnp.arange(n, dtype=jnp.int32))
+        succ, pred = tour[(pos + 1) % n], tour[(pos - 1) % n]
+        two = ls._two_opt_moves(pos, succ, pred, dist, cand, cand_d)
+        orr = ls._or_opt_moves(tour, pos, succ, pred, dist, cand, cand_d) if or_opt else None
+        if orr is not None:  # Or-opt moves only, so that both of their kinds get applied
+            two = (jnp.full_like(two[0], -jnp.inf), two[1], two[2])
+            kinds |= set(np.asarray(orr[3])[np.isfinite(np.asarray(orr[0]))].tolist())
+        new, new_pos, applied, cut = ls._apply_proposals(tour, pos, two, orr, 16,
+                                                         jnp.int32(10**6), "rounds", ends=True)
+        old, new = np.asarray(tour), np.asarray(new)
+        assert sorted(new.tolist()) == list(range(n)) and int(applied) > 0
+        np.testing.assert_array_equal(np.asarray(new_pos)[new], np.arange(n))
+
+        def pairs(t):
+            p = np.empty(n, np.int64)
+            p[t] = np.arange(n)
+            return {c: frozenset((t[(p[c] + 1) % n], t[(p[c] - 1) % n])) for c in range(n)}
+
+        before, after = pairs(old), pairs(new)
+        changed = {c for c in range(n) if before[c] != after[c]}
+        named = set(np.asarray(cut).tolist()) - {n}
+        assert named == changed
+    if or_opt:
+        assert kinds >= {ls.SEGMENT_TO_END, ls.SEGMENT_TO_FRONT}
