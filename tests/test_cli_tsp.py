@@ -310,12 +310,10 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
     keys = ("max_new_edges", "construction", "ls_focus_width", "merge_ants", "ants",
             "reference")
     assert tuple(pinned[k] for k in keys) == (
-        built_e, built_c, tsp.LS_FOCUS_WIDTH, row.merge_ants, row.ants[0].ants, row.reference)
-    # the reference: the row's with the row's construction, else the best so far
-    other = next(r for r in ("best", "iteration") if r != row.reference)
-    monkeypatch.setattr(tsp, "SPARSE_DEFAULTS", (dataclasses.replace(row, reference=other),))
-    assert strategy().reference == other
-    assert strategy(max_new_edges=8, construction="moves", ants=40).reference == "best"
+        built_e, built_c, tsp.LS_FOCUS_WIDTH, row.merge_ants, row.ants[0].ants, "best")
+    # the reference: the best so far unless told otherwise, on the row's path or not
+    assert strategy().reference == "best"
+    assert strategy(reference="iteration").reference == "iteration"
     assert strategy(reference="iteration", max_new_edges=8, construction="moves",
                     ants=40).reference == "iteration"
     monkeypatch.undo()
@@ -323,7 +321,7 @@ def test_sparse_defaults_resolve_by_backend_and_stay_pinned_for_resume(monkeypat
                                    **{k: pinned[k] for k in keys})).strategy
     assert (st.max_new_edges, st.construction, st.ls_focus_width, st.merge_ants,
             st.num_ants, st.reference) == (built_e, built_c, 128, row.merge_ants,
-                                           row.ants[0].ants, row.reference)
+                                           row.ants[0].ants, "best")
     # the CPU's row merges nothing: a pinned CPU run resumes without merging on any backend
     ck_cpu = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
     built = tsp.build(tsp.TspSettings("eil51", sparse="on", iterations=2))

@@ -127,9 +127,6 @@ class SparseRow:
     #: the construction by size: the first band whose ``below`` exceeds the cities; past the
     #: last band, ``construction`` with ``max_new_edges``
     constructions: tuple[ConstructionBand, ...] = ()
-    #: the tour the focused ants change (``--reference auto``), chosen by ``reference_claim``
-    reference: str = "best"
-    reference_claim: str = ""
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
@@ -337,13 +334,12 @@ class TspSettings:
                                      "auto and no --max-new-edges: " + "; ".join(
                                          f"{r.merge_ants} on a {r.backend.upper()}"
                                          for r in SPARSE_DEFAULTS) + "; otherwise 0)")
-    reference: str = setting("auto", "with --max-new-edges: the tour the ants change, search "
+    reference: str = setting("best", "with --max-new-edges: the tour the ants change, search "
                              "from and merge into: best (the best so far), iteration (the "
                              "last iteration's best, the best so far with probability 0.01, "
-                             "as Focused ACO's source solution); auto: " + "; ".join(
-                                 f"{r.reference} on a {r.backend.upper()}"
-                                 for r in SPARSE_DEFAULTS) + " with the default construction, "
-                             "else best", choices=("auto", "best", "iteration"))
+                             "as Focused ACO's source solution; it lost to best on the 5k "
+                             "selection instance, docs/tsp_large.md)",
+                             choices=("best", "iteration"))
     chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
                                           "compiled call about this many seconds' worth of "
                                           "iterations at the last call's pace (the sparse "
@@ -407,12 +403,10 @@ def build(s: TspSettings) -> Built:
     ls_best_k = auto.ls_best_k if s.ls_best_k is None else int(s.ls_best_k)
     preset = auto.preset if s.preset == "auto" else s.preset
     max_new_edges, construction, merge = s.max_new_edges, s.construction, s.merge_ants
-    reference = "best" if s.reference == "auto" else s.reference
     if row is not None and is_sparse(problem) and max_new_edges is None \
             and construction == "auto":
         construction, max_new_edges = row_construction(row, int(problem.n))
         merge = row.merge_ants if merge is None else merge
-        reference = row.reference if s.reference == "auto" else reference
         if s.ants is None:
             ants = row_ants(row, int(problem.n)) or ants
     elif row is not None and is_sparse(problem) and s.ants is None \
@@ -425,7 +419,7 @@ def build(s: TspSettings) -> Built:
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=max_new_edges,
                          ls_focus_width=(focus or None) if max_new_edges is not None else None,
-                         merge_ants=merge or None, reference=reference,
+                         merge_ants=merge or None, reference=s.reference,
                          construction=(construction if construction.startswith("moves")
                                        else "ants"),
                          construction_fallback=("auto" if construction.startswith("moves")
