@@ -186,24 +186,20 @@ def _apply_disjoint(
             mid = jnp.where(kind[top_i] == SEGMENT_TO_END, tl + ln_t - 1, th - ln_t)
             cut = jnp.stack([tl - 1, tl, mid, mid + 1, th, th + 1], axis=1)
         cut_cities = jnp.where(acc[:, None], tour[cut % n], n).reshape(-1)
-    if ends:  # the focused search: its owners by comparison, the moved positions only
-        inside, o = _owners(tl, th, acc, n)
-        if kind is None:
-            tour = tour[jnp.where(inside, tl[o] + th[o] - idx, idx)]
-            return tour, _moved_positions(pos, tour, inside, idx), one.sum(), cut_cities
     if kind is None:  # reversals only: the piecewise reflection p -> lo + hi - p
         w = jnp.where(acc, tl + th, 0)
         mirror = jnp.zeros(n + 1, jnp.int32).at[tl].add(w).at[th + 1].add(-w).cumsum()[:n]
         inside = jnp.zeros(n + 1, jnp.int32).at[tl].add(one).at[th + 1].add(-one).cumsum()[:n]
         inside = inside > 0
         tour = tour[jnp.where(inside, mirror - idx, idx)]
+        if ends:  # the focused search: the moved positions only
+            return tour, _moved_positions(pos, tour, inside, idx), one.sum(), cut_cities
         return tour, jnp.where(inside[pos], mirror[pos] - pos, pos), one.sum()
-    if not ends:  # the accepted move (if any) that owns each position: a prefix sum
-        label = jnp.where(acc, jnp.arange(1, top + 1, dtype=jnp.int32), 0)
-        owner = jnp.zeros(n + 1, jnp.int32).at[tl].add(label).at[th + 1].add(-label)
-        owner = owner.cumsum()[:n]
-        inside = owner > 0
-        o = jnp.maximum(owner - 1, 0)
+    # the accepted move (if any) that owns each position, by a prefix sum over the ranges
+    label = jnp.where(acc, jnp.arange(1, top + 1, dtype=jnp.int32), 0)
+    owner = jnp.zeros(n + 1, jnp.int32).at[tl].add(label).at[th + 1].add(-label).cumsum()[:n]
+    inside = owner > 0
+    o = jnp.maximum(owner - 1, 0)
     a, b = tl[o], th[o]
     kd = jnp.where(inside, kind[top_i][o], 0)
     ln, rv = span[top_i][o], rev[top_i][o]
@@ -227,20 +223,6 @@ def _apply_disjoint(
         tour = tour[src]
         return tour, _moved_positions(pos, tour, inside, idx), one.sum(), cut_cities
     return tour[src], dst[pos], one.sum()
-
-
-def _owners(tl: Array, th: Array, acc: Array, n: int) -> tuple[Array, Array]:
-    """(inside, o): whether an accepted range ``[tl, th]`` (disjoint ones) holds each position,
-    and the index of the one that does (0 where none), by comparing every position with the
-    few sorted range starts: one pass over the ``n`` positions, where a prefix sum over them
-    takes several on a GPU."""
-    lo = jnp.where(acc, tl, n)  # ranges not accepted start past the end
-    order = jnp.argsort(lo).astype(jnp.int32)
-    idx = jnp.arange(n, dtype=jnp.int32)
-    k = jnp.sum(lo[order][None, :] <= idx[:, None], axis=1, dtype=jnp.int32) - 1
-    o = order[jnp.maximum(k, 0)]
-    inside = (k >= 0) & (idx <= th[o])
-    return inside, jnp.where(inside, o, 0)
 
 
 def _moved_positions(pos: Array, tour: Array, inside: Array, idx: Array) -> Array:
