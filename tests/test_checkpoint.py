@@ -720,3 +720,29 @@ def test_one_json_rule():
             "s": repr(RandomSearch(num_ants=3)), "ok": [True, None]}
     assert to_jsonable(value) == want
     assert to_jsonable(want) == want
+
+
+def test_a_step_of_another_state_layout_is_refused_in_one_line_and_kept(tmp_path):
+    """A step written by a version whose colony state had other fields (its stored tree names
+    them) is not called corrupt or moved: one line names the fields and the way out."""
+    import json
+
+    from eaco_jax.driver.checkpoint import OtherLayout
+
+    kw = dict(seed=1, iterations=30, chunk_size=5, checkpoint_every=10)
+    folder = tmp_path / "old"
+    mini(_problem(), RandomSearch(), checkpoint_dir=folder, **kw)
+    shutil.rmtree(folder / "30")
+    for step in (10, 20):  # as a version without the ``stagnation`` field stored them
+        path = folder / str(step) / "state" / "_METADATA"
+        meta = json.loads(path.read_text())
+        meta["tree_metadata"] = {k: v for k, v in meta["tree_metadata"].items()
+                                 if not k.startswith("('stagnation'")}
+        path.write_text(json.dumps(meta))
+    before = _fingerprint(folder)
+    with pytest.raises(OtherLayout, match=r"another layout \(fields this eaco_jax needs and it "
+                       r"lacks: stagnation;.*resume it with that version or use a new "
+                       r"--checkpoint-dir") as err:
+        mini(_problem(), RandomSearch(), checkpoint_dir=folder, **kw)
+    assert "\n" not in str(err.value)
+    assert _fingerprint(folder) == before and not (folder / "corrupt").exists()

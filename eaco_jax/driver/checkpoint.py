@@ -202,6 +202,41 @@ def _to_disk(tree: Any) -> Any:
     return jax.tree.map(lambda x: jax.random.key_data(x) if _is_key(x) else x, tree)
 
 
+class OtherLayout(CheckpointError):
+    """A step that reads back but holds the colony state of another layout (other fields):
+    written by a version of eaco_jax whose state had other fields. Not corrupt: left where
+    it is."""
+
+
+def _fields(tree: Any) -> set[str]:
+    """The top-level field names of a state as orbax stores it."""
+    out = set()
+    for path, _ in jax.tree_util.tree_flatten_with_path(_to_disk(tree))[0]:
+        k = path[0]
+        out.add(str(getattr(k, "name", getattr(k, "key", getattr(k, "idx", k)))))
+    return out
+
+
+def _check_layout(where: Path, template: Any, step: int) -> None:
+    """Raise :class:`OtherLayout` when the step's stored fields (its ``_METADATA``, read as
+    JSON) differ from ``template``'s; a step without readable metadata is left to the
+    restore (which calls it corrupt if it does not read back)."""
+    try:
+        stored = json.loads((where / "state" / "_METADATA").read_text())["tree_metadata"]
+        saved = {m.group(1) for k in stored if (m := re.match(r"^\('([^']*)'", k))}
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    now = _fields(template)
+    if saved and saved != now:
+        missing, extra = sorted(now - saved), sorted(saved - now)
+        raise OtherLayout(
+            f"checkpoint step {step} in {where.parent} holds a colony state of another layout "
+            f"(fields this eaco_jax needs and it lacks: {', '.join(missing) or 'none'}; "
+            f"fields it has and this one does not: {', '.join(extra) or 'none'}): written by "
+            "another eaco_jax version; resume it with that version or use a new "
+            "--checkpoint-dir")
+
+
 def _from_disk(restored: Any, template: Any, where: Path) -> Any:
     """Re-wrap key data and check every leaf against the template's shape and dtype."""
 
@@ -502,6 +537,7 @@ class RunCheckpointer:
 
         meta = _read_step_meta(self.directory, step)
         where = self.directory / str(step)
+        _check_layout(where, template, step)
         try:
             out = _manager(self.directory, None, read_only=True).restore(
                 step, args=ocp.args.Composite(state=ocp.args.StandardRestore(_to_disk(template))))
