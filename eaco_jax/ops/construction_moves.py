@@ -108,8 +108,8 @@ def construct_tours_moves(
     if n_moves == 0:
         return tour
     every = jnp.arange(m, dtype=jnp.int32)
-    ref_pos = pos[0]
-    ref_succ, ref_pred = ref[(ref_pos + 1) % n], ref[(ref_pos - 1) % n]
+    if new_only:  # the reference's neighbours, whose edges a move may not insert
+        ref_succ, ref_pred = ref[(pos[0] + 1) % n], ref[(pos[0] - 1) % n]
 
     def move(t, carry):
         tour, pos, cur, came = carry

@@ -213,15 +213,15 @@ def _apply_disjoint(
     src = jnp.where((kd == SEGMENT_TO_END) & (idx > b - ln), a + seg(idx - (b - ln + 1)), src)
     src = jnp.where((kd == SEGMENT_TO_FRONT) & (idx >= a + ln), idx - ln, src)
     src = jnp.where((kd == SEGMENT_TO_FRONT) & (idx < a + ln), b - ln + 1 + seg(idx - a), src)
+    if ends:  # the focused search: the moved positions only
+        tour = tour[src]
+        return tour, _moved_positions(pos, tour, inside, idx), one.sum(), cut_cities
     # old position q goes to dst[q]
     dst = jnp.where(kd == REVERSE, a + b - idx, idx)
     dst = jnp.where((kd == SEGMENT_TO_END) & (idx < a + ln), b - ln + 1 + seg(idx - a), dst)
     dst = jnp.where((kd == SEGMENT_TO_END) & (idx >= a + ln), idx - ln, dst)
     dst = jnp.where((kd == SEGMENT_TO_FRONT) & (idx > b - ln), a + seg(idx - (b - ln + 1)), dst)
     dst = jnp.where((kd == SEGMENT_TO_FRONT) & (idx <= b - ln), idx + ln, dst)
-    if ends:  # the focused search: the moved positions only
-        tour = tour[src]
-        return tour, _moved_positions(pos, tour, inside, idx), one.sum(), cut_cities
     return tour[src], dst[pos], one.sum()
 
 
