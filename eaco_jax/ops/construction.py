@@ -23,6 +23,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
+from eaco_jax.ops.compaction import first_true
 from eaco_jax.ops.packed_keys import bit_allowed, id_bits, packed_keys
 
 Array = jax.Array
@@ -200,13 +201,9 @@ def _test_bits(bits: Array, ants: Array, nodes: Array) -> Array:
 
 
 def _compact(mask: Array, size: int, fill: int) -> Array:
-    """Indices of the first ``size`` True entries of ``mask`` in order, ``fill`` after them:
-    ``jnp.nonzero(mask, size=size, fill_value=fill)`` as one prefix sum and one scatter
-    without collisions (``nonzero`` counts with a scatter-add, which contends on a GPU)."""
-    rank = jnp.cumsum(mask, dtype=jnp.int32) - 1
-    where = jnp.where(mask & (rank < size), rank, size)
-    out = jnp.full((size,), fill, jnp.int32)
-    return out.at[where].set(jnp.arange(mask.shape[0], dtype=jnp.int32), mode="drop")
+    """Indices of the first ``size`` True entries of ``mask`` in order, ``fill`` after them
+    (``jnp.nonzero`` without its contended scatter-add; :func:`first_true`)."""
+    return first_true(mask, size, fill)[0]
 
 
 def _compact_step(weights: Array, row_offset: Array, q0: Array, factor: Array | None,

@@ -40,6 +40,7 @@ import jax
 import jax.numpy as jnp
 
 from eaco_jax.errors import ConfigError
+from eaco_jax.ops.compaction import first_true
 
 Array = jax.Array
 
@@ -374,8 +375,8 @@ def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_st
     def body(carry):
         tour, pos, active, moves, steps = carry
         succ, pred = _Beside(tour, pos, 1), _Beside(tour, pos, -1)
-        at = jnp.nonzero(active, size=width, fill_value=0)[0].astype(jnp.int32)
-        valid = slots < jnp.sum(active)
+        at, count = first_true(active, width, 0)  # (jnp.nonzero contends on a GPU)
+        valid = slots < count
         gain, lo, hi = _two_opt_moves(pos, succ, pred, dist, cand, cand_d, at)
         gain = jnp.where(valid, gain, -jnp.inf)
         found = gain > 0
