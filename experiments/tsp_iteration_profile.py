@@ -11,7 +11,8 @@ of those tours, the merge and the ``tell``. The local search's steps are counted
 vmapped search runs as many steps as its slowest ant, so the spread of steps says how much of
 its time the other ants wait; ``--compact FIRST,BATCH`` times the same search with the ants
 still searching after FIRST steps going on BATCH at a time (``two_opt(..., compact=)``), and
-checks that it gives the same tours.
+checks that it gives the same tours. ``--trace`` adds the device time of the search and of
+the ask kernel by kernel (``kernel_trace.py``).
 
     python experiments/tsp_iteration_profile.py --size 5000 --warm 100 --repeats 5 \\
         --compact 6,192 --compact 8,384
@@ -29,6 +30,7 @@ from pathlib import Path
 import jax
 import numpy as np
 from common import timed, write_results
+from kernel_trace import kernel_table
 from tsp_large import random_instance
 
 import eaco_jax as ea
@@ -53,7 +55,7 @@ def gpu_colony(n: int, ants: int, construction: str | None = None,
 
 
 def profile(problem, colony: GraphEACO, warm: int, repeats: int,
-            compacts: tuple[tuple[int, int], ...] = ()) -> dict:
+            compacts: tuple[tuple[int, int], ...] = (), trace: bool = False) -> dict:
     """The timings and step counts of one size (see the module docstring)."""
     result = ea.minimize(problem, colony, seed=0, iterations=warm)
     state = result.state
@@ -95,6 +97,9 @@ def profile(problem, colony: GraphEACO, warm: int, repeats: int,
                      ("tell", lambda: tell(state, searched, lengths))):
         _, med = timed(fn, repeats)
         out[f"{name}_seconds"] = med
+    if trace:  # the device's kernels of the search and of the whole ask
+        out["local_search_kernels"] = kernel_table(lambda: search(tours0, focus), repeats)
+        out["ask_kernels"] = kernel_table(lambda: ask(key, state), repeats)
     steps = np.asarray(steps)
     moves = np.asarray(moves)
     ref_length = float(problem.exact_length(np.asarray(ref)))
@@ -126,6 +131,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--compact", action="append", default=[],
                     help="FIRST_STEPS,BATCH: also time the search with the stragglers apart "
                          "(repeatable)")
+    ap.add_argument("--trace", action="store_true",
+                    help="also the device time of the search and the ask, kernel by kernel")
     ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
@@ -136,9 +143,10 @@ def main(argv: list[str] | None = None) -> None:
         row = {"n": n, "ants": a.ants, "instance_seed": a.instance_seed,
                "construction": colony.construction, "max_new_edges": colony.max_new_edges,
                **profile(problem, colony, a.warm, a.repeats,
-                         tuple(tuple(int(x) for x in c.split(",")) for c in a.compact))}
+                         tuple(tuple(int(x) for x in c.split(",")) for c in a.compact), a.trace)}
         rows.append(row)
-        print(json.dumps(row), flush=True)
+        print(json.dumps({k: v for k, v in row.items() if not k.endswith("_kernels")}),
+              flush=True)
     print(f"{'n':>7} {'ask':>8} {'build':>8} {'search':>8} {'merge':>8} {'tell':>8} "
           f"{'steps max/mean':>15}")
     for r in rows:
