@@ -40,7 +40,7 @@ import jax
 import jax.numpy as jnp
 
 from eaco_jax.errors import ConfigError
-from eaco_jax.ops.compaction import first_true
+from eaco_jax.ops.compaction import first_true, prefix_sum
 
 Array = jax.Array
 
@@ -197,8 +197,10 @@ def _apply_disjoint(
             return tour, _moved_positions(pos, tour, inside, idx), one.sum(), cut_cities
         return tour, jnp.where(inside[pos], mirror[pos] - pos, pos), one.sum()
     # the accepted move (if any) that owns each position, by a prefix sum over the ranges
+    # (each entry one label, or two of adjacent ranges apart: at most top in size)
     label = jnp.where(acc, jnp.arange(1, top + 1, dtype=jnp.int32), 0)
-    owner = jnp.zeros(n + 1, jnp.int32).at[tl].add(label).at[th + 1].add(-label).cumsum()[:n]
+    owner = jnp.zeros(n + 1, jnp.int32).at[tl].add(label).at[th + 1].add(-label)
+    owner = prefix_sum(owner, top)[:n]
     inside = owner > 0
     o = jnp.maximum(owner - 1, 0)
     a, b = tl[o], th[o]
