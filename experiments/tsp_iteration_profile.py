@@ -44,14 +44,15 @@ RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "iteration
 
 
 def gpu_colony(n: int, ants: int, construction: str | None = None,
-               max_new_edges: int | None = None) -> GraphEACO:
+               max_new_edges: int | None = None, moves_plan: str = "arrays") -> GraphEACO:
     """The sparse GPU row's colony (``runs/tsp.py``) for ``n`` cities with ``ants`` ants; its
     construction by size unless ``construction`` / ``max_new_edges`` are given."""
     row = sparse_defaults("gpu")
     kind, edges = row_construction(row, n)
     return GraphEACO(num_ants=ants, local_search="or-2opt", preset="mmas",
                      max_new_edges=max_new_edges or edges, construction=construction or kind,
-                     ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None)
+                     ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None,
+                     moves_plan=moves_plan)
 
 
 def profile(problem, colony: GraphEACO, warm: int, repeats: int,
@@ -131,6 +132,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--compact", action="append", default=[],
                     help="FIRST_STEPS,BATCH: also time the search with the stragglers apart "
                          "(repeatable)")
+    ap.add_argument("--moves-plan", default="arrays",
+                    help="how the moves constructions hold a tour: arrays / pieces (the same "
+                         "tours; GraphEACO.moves_plan)")
     ap.add_argument("--trace", action="store_true",
                     help="also the device time of the search and the ask, kernel by kernel")
     ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))
@@ -139,8 +143,9 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
     for n in a.size:
         problem = load_tsplib(str(random_instance(a.work, n, a.instance_seed)), sparse=True)
-        colony = gpu_colony(n, a.ants, a.construction, a.max_new_edges)
+        colony = gpu_colony(n, a.ants, a.construction, a.max_new_edges, a.moves_plan)
         row = {"n": n, "ants": a.ants, "instance_seed": a.instance_seed,
+               "moves_plan": a.moves_plan,
                "construction": colony.construction, "max_new_edges": colony.max_new_edges,
                **profile(problem, colony, a.warm, a.repeats,
                          tuple(tuple(int(x) for x in c.split(",")) for c in a.compact), a.trace)}

@@ -202,3 +202,35 @@ def test_new_only_keeps_a_chain_of_moves_from_putting_back_the_reference_edges()
     strategy = GraphEACO(num_ants=M, local_search="none", construction="moves-new",
                          max_new_edges=4)
     assert strategy.construction == "moves-new"
+
+
+@pytest.mark.parametrize(("kind", "walk"), KINDS)
+@pytest.mark.parametrize("new_only", [False, True])
+def test_pieces_plan_builds_the_arrays_plans_tours(kind, walk, new_only):
+    """The reference under a piecewise map of positions gives the very tours of rewriting
+    the (n,) arrays at every move: many moves (many pieces, splits at both ends of every
+    stretch, wrap-around), the greedy and the random rule, with a chaos factor."""
+    p, ref, cand_w = _setup(3)
+    factor = jnp.asarray(np.random.default_rng(4).uniform(0.5, 1.5, (M, N)), jnp.float32)
+    for n_moves, q0, fac in ((1, 0.0, None), (7, 0.5, None), (40, 0.2, factor)):
+        args = dict(walk=walk, key=n_moves, q0=q0, kind=kind, new_only=new_only, segment=5,
+                    factor=fac)
+        np.testing.assert_array_equal(
+            _build(ref, cand_w, p.neighbors, n_moves, plan="pieces", **args),
+            _build(ref, cand_w, p.neighbors, n_moves, plan="arrays", **args))
+
+
+def test_a_colony_with_the_pieces_plan_runs_the_same_iterations():
+    p, _, _ = _setup(5)
+    runs = []
+    for plan in ("arrays", "pieces"):
+        colony = GraphEACO(num_ants=8, max_new_edges=6, construction="moves-new",
+                           local_search="2opt", moves_plan=plan)
+        state = colony.init(jax.random.key(0), p)
+        for i in range(3):
+            tours, _ = colony.ask(jax.random.key(i + 1), state, p)
+            state, _ = colony.tell(state, tours, p.evaluate(tours), p)
+        runs.append(np.asarray(tours))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    with pytest.raises(ConfigError, match="moves_plan"):
+        GraphEACO(moves_plan="list")

@@ -27,10 +27,14 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from eaco_jax.ops.compaction import prefix_sum
 from eaco_jax.ops.construction import _sample
 from eaco_jax.ops.construction_sparse import candidate_rows
 
 Array = jax.Array
+
+#: how :func:`construct_tours_moves` holds an ant's tour between moves (the same tours)
+PLANS = ("arrays", "pieces")
 
 
 def _reverse(tour: Array, pos: Array, i: Array, d: Array, a: Array, b: Array
@@ -49,6 +53,80 @@ def _reverse(tour: Array, pos: Array, i: Array, d: Array, a: Array, b: Array
     return jnp.take_along_axis(tour, mapped(places), axis=1), mapped(pos)
 
 
+class _Pieces:
+    """One ant's tour as the reference tour under a piecewise map of positions, for the
+    moves of :func:`construct_tours_moves` with ``plan="pieces"``.
+
+    Piece ``j`` sends the reference positions ``dlo[j] .. dhi[j]`` to the positions
+    ``(s[j] + g[j] * p) % n`` (``g = +-1``; a piece with ``dlo > dhi`` is empty). The reference
+    tour is one piece; a reversal of a stretch of the current tour splits at most two pieces
+    at its ends and reflects the pieces inside, so after ``t`` moves there are at most
+    ``2 t + 1``, and a move costs O(pieces) per ant instead of a pass over its n positions.
+    Methods are per ant (``vmap``-ed by the caller); arrays hold ``2 n_moves + 1`` slots."""
+
+    @staticmethod
+    def start(n: int, slots: int) -> tuple[Array, ...]:
+        dlo = jnp.full(slots, n, jnp.int32).at[0].set(0)
+        dhi = jnp.full(slots, -1, jnp.int32).at[0].set(n - 1)
+        return dlo, dhi, jnp.zeros(slots, jnp.int32), jnp.ones(slots, jnp.int32), jnp.int32(1)
+
+    @staticmethod
+    def position(state, p: Array, n: int) -> Array:
+        """The current position of reference position ``p``."""
+        dlo, dhi, s, g, _ = state
+        j = jnp.argmax((dlo <= p) & (p <= dhi))
+        return (s[j] + g[j] * p) % n
+
+    @staticmethod
+    def source(state, q: Array, n: int) -> tuple[Array, Array]:
+        """(reference position at current position ``q``, its piece)."""
+        dlo, dhi, s, g, _ = state
+        p = (g * (q - s)) % n
+        j = jnp.argmax((dlo <= p) & (p <= dhi))
+        return p[j], j
+
+    @staticmethod
+    def cut(state, z: Array, n: int):
+        """Split the piece that holds current positions ``z - 1`` and ``z`` between them."""
+        dlo, dhi, s, g, count = state
+        p, j = _Pieces.source(state, z, n)
+        at = jnp.where(g[j] == 1, p, p + 1)  # the first reference position of the new piece
+        split = (at > dlo[j]) & (at <= dhi[j])
+        slot = jnp.where(split, count, dlo.shape[0])  # out of range: dropped
+        dlo = dlo.at[slot].set(at, mode="drop")
+        dhi = dhi.at[slot].set(dhi[j], mode="drop")
+        s = s.at[slot].set(s[j], mode="drop")
+        g = g.at[slot].set(g[j], mode="drop")
+        dhi = dhi.at[j].set(jnp.where(split, at - 1, dhi[j]))
+        return dlo, dhi, s, g, count + split.astype(jnp.int32)
+
+    @staticmethod
+    def reverse(state, x: Array, length: Array, mirror: Array, n: int):
+        """Reverse the ``length`` current positions from ``x`` on (cyclic; none if
+        ``length < 1``): position ``q`` inside goes to ``(mirror - q) % n``."""
+        cut = _Pieces.cut(_Pieces.cut(state, x, n), (x + length) % n, n)
+        dlo, dhi, s, g, count = cut
+        first = (s + g * dlo) % n  # where each piece's first reference position now lies
+        inside = (dlo <= dhi) & ((first - x) % n < length) & (length >= 1)
+        s = jnp.where(inside, (mirror - s) % n, s)
+        g = jnp.where(inside, -g, g)
+        out = (dlo, dhi, s, g, count)
+        return jax.tree_util.tree_map(lambda a, b: jnp.where(length >= 1, a, b), out, state)
+
+    @staticmethod
+    def tour(state, ref: Array) -> Array:
+        """The current tour: every reference position's city at its current position."""
+        dlo, dhi, s, g, _ = state
+        n = ref.shape[0]
+        live = dlo <= dhi
+        order = jnp.argsort(jnp.where(live, dlo, n)).astype(jnp.int32)
+        starts = jnp.zeros(n, jnp.int32).at[jnp.where(live, dlo, n)].add(1, mode="drop")
+        j = order[prefix_sum(starts, 1) - 1]  # the piece of every reference position
+        p = jnp.arange(n, dtype=jnp.int32)
+        q = (s[j] + g[j] * p) % n
+        return jnp.zeros(n, jnp.int32).at[q].set(ref, unique_indices=True)
+
+
 def construct_tours_moves(
     key: Array,
     cand_w: Array,
@@ -64,6 +142,7 @@ def construct_tours_moves(
     kind: str = "2opt",
     segment: int = 8,
     new_only: bool = False,
+    plan: str = "arrays",
 ) -> Array:
     """One tour per ant: ``ref_tour`` after ``n_moves`` 2-opt moves (module docstring).
 
@@ -90,6 +169,10 @@ def construct_tours_moves(
         either, so that every move inserts an edge the reference lacks. Without it, once the
         trails favour the reference tour, a chain of moves mostly puts back the reference
         edges that its previous moves removed, and many moves leave few changed edges.
+      plan: how an ant's tour is held between moves (the same tours either way, see
+        :data:`PLANS`): "arrays" rewrites its (n,) tour and positions at every move;
+        "pieces" keeps the reference tour under a piecewise map of positions
+        (:class:`_Pieces`), O(moves) a move, and writes the tour once at the end.
 
     Returns:
       (m, n) int32 tours (each a permutation; the start city is not fixed).
@@ -101,6 +184,8 @@ def construct_tours_moves(
         raise ValueError(f"kind={kind!r} is not one of 2opt, or3opt")
     if n_moves < 0:
         raise ValueError(f"n_moves must be >= 0, got {n_moves}")
+    if plan not in PLANS:
+        raise ValueError(f"plan={plan!r} is not one of {PLANS}")
     ref = jnp.asarray(ref_tour, jnp.int32)
     tour = jnp.broadcast_to(ref, (m, n))
     pos = jnp.broadcast_to(jnp.zeros(n, jnp.int32).at[ref].set(jnp.arange(n, dtype=jnp.int32)),
@@ -111,8 +196,41 @@ def construct_tours_moves(
     if new_only:  # the reference's neighbours, whose edges a move may not insert
         ref_succ, ref_pred = ref[(pos[0] + 1) % n], ref[(pos[0] - 1) % n]
 
+    if plan == "pieces":  # the reference under a piecewise map of positions (_Pieces)
+        refpos = pos[0]
+        slots = (2 if kind == "2opt" else 6) * n_moves + 1
+        held = jax.vmap(lambda _: _Pieces.start(n, slots))(every)
+
+        def position_of(held, cities):
+            return jax.vmap(_Pieces.position, (0, 0, None))(held, refpos[cities], n)
+
+        def city_at(held, places):
+            return ref[jax.vmap(_Pieces.source, (0, 0, None))(held, places % n, n)[0]]
+
+        def reverse(held, i, d, a, b):
+            x = jnp.where(d == 1, i + a, i - b) % n
+            mirror = (2 * i + d * (a + b)) % n
+            return jax.vmap(_Pieces.reverse, (0, 0, 0, 0, None))(held, x, b - a + 1, mirror, n)
+
+        def finish(held):
+            return jax.vmap(_Pieces.tour, (0, None))(held, ref)
+    else:  # every ant's (n,) tour and positions, rewritten at each move
+        held = (tour, pos)
+
+        def position_of(held, cities):
+            return held[1][every, cities]
+
+        def city_at(held, places):
+            return held[0][every, places % n]
+
+        def reverse(held, i, d, a, b):
+            return _reverse(held[0], held[1], i, d, a, b)
+
+        def finish(held):
+            return held[0]
+
     def move(t, carry):
-        tour, pos, cur, came = carry
+        held, cur, came = carry
         # move t's draws from its own key: the first t moves do not depend on n_moves
         k_city, k_pick, k_side, k_len = jax.random.split(jax.random.fold_in(key, t), 4)
         start = jax.random.randint(k_city, (m,), 0, n, jnp.int32)
@@ -121,10 +239,10 @@ def construct_tours_moves(
         cand = cands[c]  # (m, k)
         w = cand_w[row_offset + c]
         w = w if factor is None else w * factor[every[:, None], cand]
-        i = pos[every, c]
-        pred_c = tour[every, (i - 1) % n]
+        i = position_of(held, c)
+        pred_c = city_at(held, i - 1)
         if skip_neighbours:
-            succ_c = tour[every, (i + 1) % n]
+            succ_c = city_at(held, i + 1)
             w = jnp.where((cand == pred_c[:, None]) | (cand == succ_c[:, None]), 0.0, w)
         if new_only:
             w = jnp.where((cand == ref_pred[c][:, None]) | (cand == ref_succ[c][:, None]), 0.0,
@@ -134,10 +252,10 @@ def construct_tours_moves(
         # the side of c whose edge goes: walking, not the edge the ant arrived by
         after = side if not walk else jnp.where(t == 0, side, came == pred_c)
         d = jnp.where(after, 1, -1).astype(jnp.int32)  # the frame runs from c to that side
-        r = (d * (pos[every, v] - i)) % n  # v's offset from c in the frame (0: no move)
+        r = (d * (position_of(held, v) - i)) % n  # v's offset from c in the frame (0: none)
         one = jnp.ones_like(r)
         if kind == "2opt":  # the stretch succ c .. v reversed: edges (c, v), (succ c, succ v)
-            return (*_reverse(tour, pos, i, d, one, r), v, c)
+            return reverse(held, i, d, one, r), v, c
         # or3opt: the segment C = v and the cities after it, at most `segment` long, moves
         # between c and succ c: three reversals, edges (c, v), (end of C, succ c), (pred v,
         # the city after C)
@@ -145,11 +263,11 @@ def construct_tours_moves(
         # C ends before c's other neighbour: the edge the ant arrived by stays (a v drawn
         # there, without skip_neighbours, makes the three reversals a no-op)
         e = jnp.where(r > 0, jnp.minimum(r + length - 1, n - 2), 0)
-        tour, pos = _reverse(tour, pos, i, d, one, e)
-        tour, pos = _reverse(tour, pos, i, d, one, e - r + 1)
-        tour, pos = _reverse(tour, pos, i, d, e - r + 2, e)
-        return tour, pos, v, c
+        held = reverse(held, i, d, one, e)
+        held = reverse(held, i, d, one, e - r + 1)
+        held = reverse(held, i, d, e - r + 2, e)
+        return held, v, c
 
-    carry = (tour, pos, jnp.zeros((m,), jnp.int32), jnp.full((m,), -1, jnp.int32))
-    tour, _, _, _ = jax.lax.fori_loop(0, n_moves, move, carry)
-    return tour
+    carry = (held, jnp.zeros((m,), jnp.int32), jnp.full((m,), -1, jnp.int32))
+    held, _, _ = jax.lax.fori_loop(0, n_moves, move, carry)
+    return finish(held)

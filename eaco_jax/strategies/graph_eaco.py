@@ -70,6 +70,7 @@ from eaco_jax.ops.construction import (
     heuristic_log_eta,
     tour_lengths,
 )
+from eaco_jax.ops.construction_moves import PLANS as MOVES_PLANS
 from eaco_jax.ops.construction_moves import construct_tours_moves
 from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
@@ -272,6 +273,10 @@ class GraphEACO(Strategy):
     #: (first_steps, batch), see ``ops.local_search.two_opt`` (the same tours; a cost choice;
     #: None: one vmapped loop)
     ls_compact: tuple[int, int] | None = None
+    #: how the "moves" constructions hold an ant's tour between moves: "arrays" (rewritten
+    #: at each move) or "pieces" (a piecewise map of the reference's positions, O(moves) a
+    #: move); the same tours, a cost choice (``ops.construction_moves.PLANS``)
+    moves_plan: str = "arrays"
     #: sparse problems with ``max_new_edges``: the tour the ants change, search from and merge
     #: into: "best" (the best so far) or "iteration" (the last iteration's best, and with
     #: probability ``reference_best_prob`` the best so far: Focused ACO's source solution,
@@ -307,6 +312,8 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         if self.ls_focus_width is not None and self.ls_focus_width < 1:
             raise ConfigError(f"ls_focus_width must be >= 1 or None, got {self.ls_focus_width}")
+        if self.moves_plan not in MOVES_PLANS:
+            raise ConfigError(f"moves_plan={self.moves_plan!r} is not one of {MOVES_PLANS}")
         if self.ls_compact is not None:
             if len(self.ls_compact) != 2 or int(self.ls_compact[0]) < 0 \
                     or int(self.ls_compact[1]) < 1:
@@ -541,7 +548,7 @@ class GraphEACO(Strategy):
                         k_build, stacked, problem.neighbors, ref, self.max_new_edges, m + 1,
                         q0, offset, chaos_factor,
                         kind="or3opt" if self.construction == "moves-or3opt" else "2opt",
-                        new_only=self.construction == "moves-new")
+                        new_only=self.construction == "moves-new", plan=self.moves_plan)
                 return construct_tours_sparse(k_build, stacked, problem.neighbors, starts, ref,
                                               q0, offset, chaos_factor, self.max_new_edges,
                                               self._sparse_plan())
