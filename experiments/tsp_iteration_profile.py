@@ -44,7 +44,8 @@ RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "iteration
 
 
 def gpu_colony(n: int, ants: int, construction: str | None = None,
-               max_new_edges: int | None = None, moves_plan: str = "arrays") -> GraphEACO:
+               max_new_edges: int | None = None, moves_plan: str = "arrays",
+               ls_loop: str = "ants") -> GraphEACO:
     """The sparse GPU row's colony (``runs/tsp.py``) for ``n`` cities with ``ants`` ants; its
     construction by size unless ``construction`` / ``max_new_edges`` are given."""
     row = sparse_defaults("gpu")
@@ -52,7 +53,7 @@ def gpu_colony(n: int, ants: int, construction: str | None = None,
     return GraphEACO(num_ants=ants, local_search="or-2opt", preset="mmas",
                      max_new_edges=max_new_edges or edges, construction=construction or kind,
                      ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None,
-                     moves_plan=moves_plan)
+                     moves_plan=moves_plan, ls_loop=ls_loop)
 
 
 def profile(problem, colony: GraphEACO, warm: int, repeats: int,
@@ -74,7 +75,7 @@ def profile(problem, colony: GraphEACO, warm: int, repeats: int,
         return local_search.two_opt(t, dist, problem.neighbors, None,
                                     moves_per_step=colony.ls_moves_per_step, or_opt=True,
                                     return_steps=True, active=a,
-                                    focus_width=colony.ls_focus_width)
+                                    focus_width=colony.ls_focus_width, loop=colony.ls_loop)
 
     searched, moves, steps = search(tours0, focus)
     merge = jax.jit(lambda t: merge_improvements(ref, t, problem.dist, colony.merge_ants))
@@ -135,6 +136,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--moves-plan", default="arrays",
                     help="how the moves constructions hold a tour: arrays / pieces (the same "
                          "tours; GraphEACO.moves_plan)")
+    ap.add_argument("--ls-loop", default="ants",
+                    help="how the focused search loops: ants / colony (the same tours; "
+                         "GraphEACO.ls_loop)")
     ap.add_argument("--trace", action="store_true",
                     help="also the device time of the search and the ask, kernel by kernel")
     ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))
@@ -143,9 +147,10 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
     for n in a.size:
         problem = load_tsplib(str(random_instance(a.work, n, a.instance_seed)), sparse=True)
-        colony = gpu_colony(n, a.ants, a.construction, a.max_new_edges, a.moves_plan)
+        colony = gpu_colony(n, a.ants, a.construction, a.max_new_edges, a.moves_plan,
+                            a.ls_loop)
         row = {"n": n, "ants": a.ants, "instance_seed": a.instance_seed,
-               "moves_plan": a.moves_plan,
+               "moves_plan": a.moves_plan, "ls_loop": a.ls_loop,
                "construction": colony.construction, "max_new_edges": colony.max_new_edges,
                **profile(problem, colony, a.warm, a.repeats,
                          tuple(tuple(int(x) for x in c.split(",")) for c in a.compact), a.trace)}

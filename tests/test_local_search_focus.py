@@ -193,3 +193,40 @@ def test_a_step_names_exactly_the_cities_whose_tour_neighbours_changed(or_opt):
         assert named == changed
     if or_opt:
         assert kinds >= {ls.SEGMENT_TO_END, ls.SEGMENT_TO_FRONT}
+
+
+@pytest.mark.parametrize("max_moves", [None, 6])
+def test_the_colony_loop_gives_the_same_tours_moves_and_steps(uneven, max_moves):
+    """One loop over the colony's steps (no per-ant select) against the vmapped loop: the
+    same tours, moves and steps for searches of uneven length, an ant with no active city,
+    and ants stopped by the move cap."""
+    d, nb, pert, focus = uneven
+    focus = focus.copy()
+    focus[0] = False  # an ant that does not search at all
+    args = dict(or_opt=True, active=focus, focus_width=4, return_steps=True)
+    want = [np.asarray(x) for x in two_opt(pert, d, nb, max_moves, **args)]
+    assert want[2][0] == 0 and want[2].min() < want[2][1:].max()
+    got = [np.asarray(x) for x in two_opt(pert, d, nb, max_moves, loop="colony", **args)]
+    for w, g in zip(want, got, strict=True):
+        np.testing.assert_array_equal(g, w)
+
+
+def test_a_colony_with_ls_loop_colony_builds_the_same_tours():
+    import dataclasses
+
+    import jax
+
+    from eaco_jax.errors import ConfigError
+    from eaco_jax.problems.tsp_sparse import SparseTSP
+    from eaco_jax.strategies.graph_eaco import GraphEACO
+
+    xy = np.random.default_rng(6).integers(0, 10_000, (150, 2))
+    problem = SparseTSP.from_coords(xy, neighbors=8)
+    plain = GraphEACO(num_ants=6, local_search="or-2opt", preset="mmas", max_new_edges=16,
+                      construction="moves-new", ls_focus_width=4)
+    state = plain.init(jax.random.key(0), problem)
+    a, _ = plain.ask(jax.random.key(1), state, problem)
+    b, _ = dataclasses.replace(plain, ls_loop="colony").ask(jax.random.key(1), state, problem)
+    np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    with pytest.raises(ConfigError, match="ls_loop"):
+        GraphEACO(ls_loop="threads")

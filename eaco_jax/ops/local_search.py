@@ -137,6 +137,10 @@ def _greedy_sequential(valid: Array, overlap: Array, budget: Array) -> Array:
 #: "rounds" in parallel rounds (:func:`_greedy_disjoint`), "sequential" one by one
 ACCEPTANCES = ("rounds", "sequential")
 
+#: how :func:`two_opt` loops over the steps of a focused search (the same tours either way):
+#: "ants", a vmapped loop per tour; "colony", one loop over the colony (:func:`_focused_colony`)
+LOOPS = ("ants", "colony")
+
 
 def _apply_disjoint(
     tour: Array,
@@ -469,6 +473,35 @@ def _focused_compacted(
     return carry[0], carry[3], carry[4]
 
 
+def _focused_colony(
+    tours: Array, active0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
+    per_step: int, or_opt: bool, acceptance: str, width: int,
+) -> tuple[Array, Array, Array]:
+    """:func:`_focused_one` of every tour, the same tours, moves and steps, as one loop over
+    the colony's steps instead of a vmapped loop: a vmapped ``while_loop`` selects, after
+    every step, each ant's whole carry (its (n,) tour, positions and bits) between the old
+    and the new, so that ants already done keep theirs. Here a done ant's step changes
+    nothing anyway (no active city, or no moves left to apply), so the step runs for every
+    ant without that select, and only the step count is kept per ant."""
+    m, n = tours.shape
+    body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
+                              width, n)
+    cities = jnp.arange(n, dtype=jnp.int32)
+    pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
+    zeros = jnp.zeros((m,), jnp.int32)
+    carry = (tours, pos0, jnp.asarray(active0, bool), zeros, zeros)
+
+    def step(state):
+        carry, alive = state
+        tour, pos, active, moves, steps = jax.vmap(body)(carry)
+        carry = (tour, pos, active, moves, carry[4] + alive.astype(jnp.int32))
+        return carry, jax.vmap(live)(carry)
+
+    (tour, _, _, moves, steps), _ = jax.lax.while_loop(
+        lambda state: jnp.any(state[1]), step, (carry, jax.vmap(live)(carry)))
+    return tour, moves, steps
+
+
 def _two_opt_one(
     tour: Array,
     dist: Array,
@@ -515,7 +548,8 @@ def _two_opt_one(
 
 
 @partial(jax.jit, static_argnames=("max_moves", "return_moves", "moves_per_step", "or_opt",
-                                   "return_steps", "acceptance", "focus_width", "compact"))
+                                   "return_steps", "acceptance", "focus_width", "compact",
+                                   "loop"))
 def two_opt(
     tours: Array,
     dist: Array,
@@ -529,6 +563,7 @@ def two_opt(
     active: Array | None = None,
     focus_width: int = 128,
     compact: tuple[int, int] | None = None,
+    loop: str = "ants",
 ) -> Array | tuple[Array, Array] | tuple[Array, Array, Array]:
     """2-opt (and Or-opt) local search of every tour in ``tours`` ``(m, n)`` to a local optimum.
 
@@ -551,12 +586,17 @@ def two_opt(
         :func:`changed_cities`). None: every city, every step.
       focus_width: with ``active``, the most cities a step evaluates.
       compact: with ``active``, ``(first_steps, batch)``: the same search without the colony
-        waiting for its slowest ant (:func:`_focused_compacted`); None: one vmapped loop.
+        waiting for its slowest ant (:func:`_focused_compacted`); None: one loop.
+      loop: with ``active`` and no ``compact``, :data:`LOOPS`: "ants" (a vmapped loop, one
+        per tour) or "colony" (one loop over the colony's steps, :func:`_focused_colony`);
+        the same tours, moves and steps either way.
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
     if acceptance not in ACCEPTANCES:
         raise ConfigError(f"acceptance={acceptance!r} is not one of {ACCEPTANCES}")
+    if loop not in LOOPS:
+        raise ConfigError(f"loop={loop!r} is not one of {LOOPS}")
     tours = jnp.asarray(tours, jnp.int32)
     dist = as_distances(dist)
     _check(tours, dist, neighbors, or_opt)
@@ -583,6 +623,10 @@ def two_opt(
             out, moves, steps = _focused_compacted(
                 tours, active, dist, cand, cand_d, mm, moves_per_step, or_opt, acceptance,
                 width, first_steps, batch)
+        elif loop == "colony":
+            out, moves, steps = _focused_colony(
+                tours, active, dist, cand, cand_d, mm, moves_per_step, or_opt, acceptance,
+                width)
         else:
             out, moves, steps = jax.vmap(
                 lambda t, a: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,

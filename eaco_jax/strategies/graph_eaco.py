@@ -73,6 +73,7 @@ from eaco_jax.ops.construction import (
 from eaco_jax.ops.construction_moves import PLANS as MOVES_PLANS
 from eaco_jax.ops.construction_moves import construct_tours_moves
 from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
+from eaco_jax.ops.local_search import LOOPS as LS_LOOPS
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
 from eaco_jax.problems.tsp_sparse import is_sparse
 from eaco_jax.strategies.base import (
@@ -277,6 +278,10 @@ class GraphEACO(Strategy):
     #: at each move) or "pieces" (a piecewise map of the reference's positions, O(moves) a
     #: move); the same tours, a cost choice (``ops.construction_moves.PLANS``)
     moves_plan: str = "arrays"
+    #: how the focused batched search loops over its steps: "ants" (a vmapped loop per tour)
+    #: or "colony" (one loop over the colony, without the vmapped loop's select of every
+    #: ant's carry after each step); the same tours, a cost choice (``ops.local_search.LOOPS``)
+    ls_loop: str = "ants"
     #: sparse problems with ``max_new_edges``: the tour the ants change, search from and merge
     #: into: "best" (the best so far) or "iteration" (the last iteration's best, and with
     #: probability ``reference_best_prob`` the best so far: Focused ACO's source solution,
@@ -312,6 +317,8 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_moves_per_step must be >= 1, got {self.ls_moves_per_step}")
         if self.ls_focus_width is not None and self.ls_focus_width < 1:
             raise ConfigError(f"ls_focus_width must be >= 1 or None, got {self.ls_focus_width}")
+        if self.ls_loop not in LS_LOOPS:
+            raise ConfigError(f"ls_loop={self.ls_loop!r} is not one of {LS_LOOPS}")
         if self.moves_plan not in MOVES_PLANS:
             raise ConfigError(f"moves_plan={self.moves_plan!r} is not one of {MOVES_PLANS}")
         if self.ls_compact is not None:
@@ -641,7 +648,8 @@ class GraphEACO(Strategy):
                                             moves_per_step=self.ls_moves_per_step,
                                             or_opt=self.local_search == "or-2opt", active=a,
                                             focus_width=self.ls_focus_width or 1,
-                                            compact=None if a is None else self.ls_compact)
+                                            compact=None if a is None else self.ls_compact,
+                                            loop=self.ls_loop)
         else:
             def improve(t, a=None):
                 return local_search.dlb_local_search(
