@@ -107,7 +107,7 @@ class _Pieces:
         cut = _Pieces.cut(_Pieces.cut(state, x, n), (x + length) % n, n)
         dlo, dhi, s, g, count = cut
         first = (s + g * dlo) % n  # where each piece's first reference position now lies
-        inside = (dlo <= dhi) & ((first - x) % n < length) & (length >= 1)
+        inside = (dlo <= dhi) & ((first - x) % n < length)
         s = jnp.where(inside, (mirror - s) % n, s)
         g = jnp.where(inside, -g, g)
         out = (dlo, dhi, s, g, count)
@@ -118,9 +118,9 @@ class _Pieces:
         """The current tour: every reference position's city at its current position."""
         dlo, dhi, s, g, _ = state
         n = ref.shape[0]
-        live = dlo <= dhi
-        order = jnp.argsort(jnp.where(live, dlo, n)).astype(jnp.int32)
-        starts = jnp.zeros(n, jnp.int32).at[jnp.where(live, dlo, n)].add(1, mode="drop")
+        first = jnp.where(dlo <= dhi, dlo, n)  # empty slots after every piece
+        order = jnp.argsort(first).astype(jnp.int32)
+        starts = jnp.zeros(n, jnp.int32).at[first].add(1, mode="drop")
         j = order[prefix_sum(starts, 1) - 1]  # the piece of every reference position
         p = jnp.arange(n, dtype=jnp.int32)
         q = (s[j] + g[j] * p) % n

@@ -433,6 +433,16 @@ def _focused_one(
     return tour, moves, steps
 
 
+def _focused_carry(tours: Array, active0: Array) -> tuple[Array, ...]:
+    """The starting carry ``(tour, pos, active, moves, steps)`` of every tour's focused
+    search (:func:`_focused_fns`), stacked over the colony."""
+    m, n = tours.shape
+    cities = jnp.arange(n, dtype=jnp.int32)
+    pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
+    zeros = jnp.zeros((m,), jnp.int32)
+    return tours, pos0, jnp.asarray(active0, bool), zeros, zeros
+
+
 def _focused_compacted(
     tours: Array, active0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
     per_step: int, or_opt: bool, acceptance: str, width: int, first_steps: int, batch: int,
@@ -446,10 +456,7 @@ def _focused_compacted(
     body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
                               width, n)
     batch = min(int(batch), m)
-    cities = jnp.arange(n, dtype=jnp.int32)
-    pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
-    zeros = jnp.zeros((m,), jnp.int32)
-    carry = (tours, pos0, jnp.asarray(active0, bool), zeros, zeros)
+    carry = _focused_carry(tours, active0)
 
     def capped(c):
         return jax.lax.while_loop(lambda x: live(x) & (x[4] < first_steps), body, c)
@@ -483,13 +490,10 @@ def _focused_colony(
     and the new, so that ants already done keep theirs. Here a done ant's step changes
     nothing anyway (no active city, or no moves left to apply), so the step runs for every
     ant without that select, and only the step count is kept per ant."""
-    m, n = tours.shape
+    n = tours.shape[1]
     body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
                               width, n)
-    cities = jnp.arange(n, dtype=jnp.int32)
-    pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
-    zeros = jnp.zeros((m,), jnp.int32)
-    carry = (tours, pos0, jnp.asarray(active0, bool), zeros, zeros)
+    carry = _focused_carry(tours, active0)
 
     def step(state):
         carry, alive = state
