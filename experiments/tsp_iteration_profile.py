@@ -44,8 +44,8 @@ RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "iteration
 
 
 def gpu_colony(n: int, ants: int, construction: str | None = None,
-               max_new_edges: int | None = None, moves_plan: str = "arrays",
-               ls_loop: str = "ants") -> GraphEACO:
+               max_new_edges: int | None = None, moves_plan: str | None = None,
+               ls_loop: str | None = None) -> GraphEACO:
     """The sparse GPU row's colony (``runs/tsp.py``) for ``n`` cities with ``ants`` ants; its
     construction by size unless ``construction`` / ``max_new_edges`` are given."""
     row = sparse_defaults("gpu")
@@ -53,7 +53,8 @@ def gpu_colony(n: int, ants: int, construction: str | None = None,
     return GraphEACO(num_ants=ants, local_search="or-2opt", preset="mmas",
                      max_new_edges=max_new_edges or edges, construction=construction or kind,
                      ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None,
-                     moves_plan=moves_plan, ls_loop=ls_loop)
+                     **{k: v for k, v in (("moves_plan", moves_plan), ("ls_loop", ls_loop))
+                        if v is not None})
 
 
 def profile(problem, colony: GraphEACO, warm: int, repeats: int,
@@ -133,12 +134,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--compact", action="append", default=[],
                     help="FIRST_STEPS,BATCH: also time the search with the stragglers apart "
                          "(repeatable)")
-    ap.add_argument("--moves-plan", default="arrays",
+    ap.add_argument("--moves-plan", default=None,
                     help="how the moves constructions hold a tour: arrays / pieces (the same "
-                         "tours; GraphEACO.moves_plan)")
-    ap.add_argument("--ls-loop", default="ants",
+                         "tours; GraphEACO.moves_plan; default: the library's)")
+    ap.add_argument("--ls-loop", default=None,
                     help="how the focused search loops: ants / colony (the same tours; "
-                         "GraphEACO.ls_loop)")
+                         "GraphEACO.ls_loop; default: the library's)")
     ap.add_argument("--trace", action="store_true",
                     help="also the device time of the search and the ask, kernel by kernel")
     ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))
@@ -150,7 +151,7 @@ def main(argv: list[str] | None = None) -> None:
         colony = gpu_colony(n, a.ants, a.construction, a.max_new_edges, a.moves_plan,
                             a.ls_loop)
         row = {"n": n, "ants": a.ants, "instance_seed": a.instance_seed,
-               "moves_plan": a.moves_plan, "ls_loop": a.ls_loop,
+               "moves_plan": colony.moves_plan, "ls_loop": colony.ls_loop,
                "construction": colony.construction, "max_new_edges": colony.max_new_edges,
                **profile(problem, colony, a.warm, a.repeats,
                          tuple(tuple(int(x) for x in c.split(",")) for c in a.compact), a.trace)}

@@ -232,5 +232,6 @@ def test_a_colony_with_the_pieces_plan_runs_the_same_iterations():
             state, _ = colony.tell(state, tours, p.evaluate(tours), p)
         runs.append(np.asarray(tours))
     np.testing.assert_array_equal(runs[0], runs[1])
+    assert GraphEACO().moves_plan == "pieces"  # the default
     with pytest.raises(ConfigError, match="moves_plan"):
         GraphEACO(moves_plan="list")

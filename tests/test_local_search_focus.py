@@ -223,7 +223,8 @@ def test_a_colony_with_ls_loop_colony_builds_the_same_tours():
     xy = np.random.default_rng(6).integers(0, 10_000, (150, 2))
     problem = SparseTSP.from_coords(xy, neighbors=8)
     plain = GraphEACO(num_ants=6, local_search="or-2opt", preset="mmas", max_new_edges=16,
-                      construction="moves-new", ls_focus_width=4)
+                      construction="moves-new", ls_focus_width=4, ls_loop="ants")
+    assert GraphEACO().ls_loop == "colony"  # the default; "ants" is the reference here
     state = plain.init(jax.random.key(0), problem)
     a, _ = plain.ask(jax.random.key(1), state, problem)
     b, _ = dataclasses.replace(plain, ls_loop="colony").ask(jax.random.key(1), state, problem)

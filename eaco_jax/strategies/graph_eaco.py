@@ -277,11 +277,11 @@ class GraphEACO(Strategy):
     #: how the "moves" constructions hold an ant's tour between moves: "arrays" (rewritten
     #: at each move) or "pieces" (a piecewise map of the reference's positions, O(moves) a
     #: move); the same tours, a cost choice (``ops.construction_moves.PLANS``)
-    moves_plan: str = "arrays"
+    moves_plan: str = "pieces"
     #: how the focused batched search loops over its steps: "ants" (a vmapped loop per tour)
     #: or "colony" (one loop over the colony, without the vmapped loop's select of every
     #: ant's carry after each step); the same tours, a cost choice (``ops.local_search.LOOPS``)
-    ls_loop: str = "ants"
+    ls_loop: str = "colony"
     #: sparse problems with ``max_new_edges``: the tour the ants change, search from and merge
     #: into: "best" (the best so far) or "iteration" (the last iteration's best, and with
     #: probability ``reference_best_prob`` the best so far: Focused ACO's source solution,
