@@ -45,7 +45,7 @@ RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "iteration
 
 def gpu_colony(n: int, ants: int, construction: str | None = None,
                max_new_edges: int | None = None, moves_plan: str | None = None,
-               ls_loop: str | None = None) -> GraphEACO:
+               ls_loop: str | None = None, acceptance: str | None = None) -> GraphEACO:
     """The sparse GPU row's colony (``runs/tsp.py``) for ``n`` cities with ``ants`` ants; its
     construction by size unless ``construction`` / ``max_new_edges`` are given."""
     row = sparse_defaults("gpu")
@@ -53,8 +53,8 @@ def gpu_colony(n: int, ants: int, construction: str | None = None,
     return GraphEACO(num_ants=ants, local_search="or-2opt", preset="mmas",
                      max_new_edges=max_new_edges or edges, construction=construction or kind,
                      ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None,
-                     **{k: v for k, v in (("moves_plan", moves_plan), ("ls_loop", ls_loop))
-                        if v is not None})
+                     **{k: v for k, v in (("moves_plan", moves_plan), ("ls_loop", ls_loop),
+                                          ("ls_acceptance", acceptance)) if v is not None})
 
 
 def profile(problem, colony: GraphEACO, warm: int, repeats: int,
@@ -76,7 +76,8 @@ def profile(problem, colony: GraphEACO, warm: int, repeats: int,
         return local_search.two_opt(t, dist, problem.neighbors, None,
                                     moves_per_step=colony.ls_moves_per_step, or_opt=True,
                                     return_steps=True, active=a,
-                                    focus_width=colony.ls_focus_width, loop=colony.ls_loop)
+                                    focus_width=colony.ls_focus_width, loop=colony.ls_loop,
+                                    acceptance=colony.ls_acceptance)
 
     searched, moves, steps = search(tours0, focus)
     merge = jax.jit(lambda t: merge_improvements(ref, t, problem.dist, colony.merge_ants))
@@ -140,6 +141,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--ls-loop", default=None,
                     help="how the focused search loops: ants / colony (the same tours; "
                          "GraphEACO.ls_loop; default: the library's)")
+    ap.add_argument("--acceptance", default=None,
+                    help="how a search step accepts its moves: rounds / unrolled (the same "
+                         "tours; GraphEACO.ls_acceptance; default: the library's)")
     ap.add_argument("--trace", action="store_true",
                     help="also the device time of the search and the ask, kernel by kernel")
     ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))
@@ -149,9 +153,10 @@ def main(argv: list[str] | None = None) -> None:
     for n in a.size:
         problem = load_tsplib(str(random_instance(a.work, n, a.instance_seed)), sparse=True)
         colony = gpu_colony(n, a.ants, a.construction, a.max_new_edges, a.moves_plan,
-                            a.ls_loop)
+                            a.ls_loop, a.acceptance)
         row = {"n": n, "ants": a.ants, "instance_seed": a.instance_seed,
                "moves_plan": colony.moves_plan, "ls_loop": colony.ls_loop,
+               "acceptance": colony.ls_acceptance,
                "construction": colony.construction, "max_new_edges": colony.max_new_edges,
                **profile(problem, colony, a.warm, a.repeats,
                          tuple(tuple(int(x) for x in c.split(",")) for c in a.compact), a.trace)}

@@ -229,5 +229,15 @@ def test_a_colony_with_ls_loop_colony_builds_the_same_tours():
     a, _ = plain.ask(jax.random.key(1), state, problem)
     b, _ = dataclasses.replace(plain, ls_loop="colony").ask(jax.random.key(1), state, problem)
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    c, _ = dataclasses.replace(plain, ls_loop="colony", ls_acceptance="unrolled").ask(
+        jax.random.key(1), state, problem)
+    np.testing.assert_array_equal(np.asarray(a), np.asarray(c))
+    # the setting reaches the search: its program differs (the rounds inline), not its tours
+    progs = [str(jax.make_jaxpr(lambda k, s, g=g: g.ask(k, s, problem))(jax.random.key(1), state))
+             for g in (dataclasses.replace(plain, ls_loop="colony"),
+                       dataclasses.replace(plain, ls_loop="colony", ls_acceptance="unrolled"))]
+    assert progs[0] != progs[1]
     with pytest.raises(ConfigError, match="ls_loop"):
         GraphEACO(ls_loop="threads")
+    with pytest.raises(ConfigError, match="ls_acceptance"):
+        GraphEACO(ls_acceptance="greedy")

@@ -115,8 +115,10 @@ def test_parallel_acceptance_is_the_sequential_greedy(seed):
         for t in range(m):
             if valid[t] and not np.any(want & overlap[t]) and taken < budget:
                 want[t], taken = True, taken + 1
-        got = _greedy_disjoint(jnp.asarray(valid), jnp.asarray(overlap), jnp.int32(budget))
-        np.testing.assert_array_equal(np.asarray(got), want)
+        for unrolled in (0, 1, 4, 80):  # rounds inline before the loop: the same
+            got = _greedy_disjoint(jnp.asarray(valid), jnp.asarray(overlap), jnp.int32(budget),
+                                   unrolled)
+            np.testing.assert_array_equal(np.asarray(got), want)
 
 
 def _or_moves_left(d, tour, cand):

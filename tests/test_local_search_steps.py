@@ -56,9 +56,10 @@ def test_sequential_acceptance_returns_the_same_tours(eil51, or_opt):
     tours = _tours(51, 6, seed=2)
     got = {a: two_opt(tours, eil51.dist, eil51.neighbors, moves_per_step=16, or_opt=or_opt,
                       return_steps=True, acceptance=a) for a in ACCEPTANCES}
-    assert set(got) == {"rounds", "sequential"}
-    for a, b in zip(got["rounds"], got["sequential"], strict=True):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert set(got) == {"rounds", "unrolled", "sequential"}
+    for other in ("unrolled", "sequential"):
+        for a, b in zip(got["rounds"], got[other], strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert np.all(np.asarray(got["rounds"][1]) > 0)
 
 

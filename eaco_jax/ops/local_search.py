@@ -96,7 +96,7 @@ def _default_max_moves(n: int, max_moves: int | None) -> int:
 REVERSE, SEGMENT_TO_END, SEGMENT_TO_FRONT = 1, 2, 3
 
 
-def _greedy_disjoint(valid: Array, overlap: Array, budget: Array) -> Array:
+def _greedy_disjoint(valid: Array, overlap: Array, budget: Array, unrolled: int = 0) -> Array:
     """Greedy acceptance in index order, in parallel rounds: entry ``t`` is accepted when it is
     ``valid`` and overlaps no accepted ``s < t``, and only the first ``budget`` are kept.
 
@@ -107,6 +107,11 @@ def _greedy_disjoint(valid: Array, overlap: Array, budget: Array) -> Array:
     rejected), so the result is the greedy's, in as many rounds as the longest chain of
     overlaps (a few), not ``len(valid)`` steps. Truncating to the first ``budget`` accepted
     is the greedy with a budget: its decisions before the budget runs out are the same.
+
+    ``unrolled``: rounds run inline before the loop (a round with nothing undecided changes
+    nothing, so the result is the same). On a GPU each turn of a loop whose end depends on
+    the data waits for the host to read its test; a vmapped colony's loop runs as many rounds
+    as its longest chain, usually 3 or 4, and the unrolled ones skip those waits.
     """
     before = jnp.tril(overlap, -1)  # before[t, s]: s < t and they overlap
 
@@ -117,8 +122,10 @@ def _greedy_disjoint(valid: Array, overlap: Array, budget: Array) -> Array:
         clash = jnp.any(overlap & take[None, :], axis=1)
         return undecided & ~take & ~clash, acc
 
-    _, acc = jax.lax.while_loop(lambda c: jnp.any(c[0]), round_,
-                                (valid, jnp.zeros_like(valid)))
+    carry = (valid, jnp.zeros_like(valid))
+    for _ in range(unrolled):
+        carry = round_(carry)
+    _, acc = jax.lax.while_loop(lambda c: jnp.any(c[0]), round_, carry)
     return acc & (jnp.cumsum(acc) <= budget)
 
 
@@ -134,8 +141,12 @@ def _greedy_sequential(valid: Array, overlap: Array, budget: Array) -> Array:
 
 
 #: how a step of :func:`two_opt` accepts its disjoint moves (the same moves either way):
-#: "rounds" in parallel rounds (:func:`_greedy_disjoint`), "sequential" one by one
-ACCEPTANCES = ("rounds", "sequential")
+#: "rounds" in parallel rounds (:func:`_greedy_disjoint`), "unrolled" the same with its first
+#: :data:`UNROLLED_ROUNDS` rounds inline, "sequential" one by one
+ACCEPTANCES = ("rounds", "unrolled", "sequential")
+#: the rounds "unrolled" runs before its loop: a step's longest chain of overlapping moves is
+#: rarely longer (docs/tsp_large.md counts them)
+UNROLLED_ROUNDS = 4
 
 #: how :func:`two_opt` loops over the steps of a focused search (the same tours either way):
 #: "ants", a vmapped loop per tour; "colony", one loop over the colony (:func:`_focused_colony`)
@@ -179,8 +190,11 @@ def _apply_disjoint(
     overlap = overlap | ((tl[:, None] == 0) & (th[None, :] == n - 1))
     overlap = overlap | ((tl[None, :] == 0) & (th[:, None] == n - 1))
 
-    greedy = _greedy_sequential if acceptance == "sequential" else _greedy_disjoint
-    acc = greedy(top_g > 0, overlap, budget)
+    if acceptance == "sequential":
+        acc = _greedy_sequential(top_g > 0, overlap, budget)
+    else:
+        acc = _greedy_disjoint(top_g > 0, overlap, budget,
+                               UNROLLED_ROUNDS if acceptance == "unrolled" else 0)
     one = acc.astype(jnp.int32)
     idx = jnp.arange(n, dtype=jnp.int32)
     if ends:  # old positions at the ends of every removed edge (edge e: e and e + 1)

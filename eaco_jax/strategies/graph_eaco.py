@@ -73,6 +73,7 @@ from eaco_jax.ops.construction import (
 from eaco_jax.ops.construction_moves import PLANS as MOVES_PLANS
 from eaco_jax.ops.construction_moves import construct_tours_moves
 from eaco_jax.ops.construction_sparse import construct_tours_sparse, hilbert_tour
+from eaco_jax.ops.local_search import ACCEPTANCES as LS_ACCEPTANCES
 from eaco_jax.ops.local_search import LOOPS as LS_LOOPS
 from eaco_jax.problems.tsp import DEFAULT_NEIGHBORS
 from eaco_jax.problems.tsp_sparse import is_sparse
@@ -282,6 +283,10 @@ class GraphEACO(Strategy):
     #: or "colony" (one loop over the colony, without the vmapped loop's select of every
     #: ant's carry after each step); the same tours, a cost choice (``ops.local_search.LOOPS``)
     ls_loop: str = "colony"
+    #: how a step of the batched searches accepts its disjoint moves: "rounds" (a loop of
+    #: parallel rounds) or "unrolled" (its first rounds inline, skipping a GPU's wait on the
+    #: loop's test); the same tours, a cost choice (``ops.local_search.ACCEPTANCES``)
+    ls_acceptance: str = "rounds"
     #: sparse problems with ``max_new_edges``: the tour the ants change, search from and merge
     #: into: "best" (the best so far) or "iteration" (the last iteration's best, and with
     #: probability ``reference_best_prob`` the best so far: Focused ACO's source solution,
@@ -319,6 +324,9 @@ class GraphEACO(Strategy):
             raise ConfigError(f"ls_focus_width must be >= 1 or None, got {self.ls_focus_width}")
         if self.ls_loop not in LS_LOOPS:
             raise ConfigError(f"ls_loop={self.ls_loop!r} is not one of {LS_LOOPS}")
+        if self.ls_acceptance not in LS_ACCEPTANCES:
+            raise ConfigError(f"ls_acceptance={self.ls_acceptance!r} is not one of "
+                              f"{LS_ACCEPTANCES}")
         if self.moves_plan not in MOVES_PLANS:
             raise ConfigError(f"moves_plan={self.moves_plan!r} is not one of {MOVES_PLANS}")
         if self.ls_compact is not None:
@@ -649,7 +657,8 @@ class GraphEACO(Strategy):
                                             or_opt=self.local_search == "or-2opt", active=a,
                                             focus_width=self.ls_focus_width or 1,
                                             compact=None if a is None else self.ls_compact,
-                                            loop=self.ls_loop)
+                                            loop=self.ls_loop,
+                                            acceptance=self.ls_acceptance)
         else:
             def improve(t, a=None):
                 return local_search.dlb_local_search(
