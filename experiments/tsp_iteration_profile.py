@@ -88,7 +88,8 @@ def profile(problem, colony: GraphEACO, warm: int, repeats: int,
     for first, batch in compacts:  # the same search, the stragglers apart (same tours)
         compacted = jax.jit(lambda t, a, c=(first, batch): local_search.two_opt(
             t, dist, problem.neighbors, None, moves_per_step=colony.ls_moves_per_step,
-            or_opt=True, active=a, focus_width=colony.ls_focus_width, compact=c))
+            or_opt=True, active=a, focus_width=colony.ls_focus_width, compact=c,
+            loop=colony.ls_loop, acceptance=colony.ls_acceptance))
         same = bool(np.array_equal(np.asarray(compacted(tours0, focus)), np.asarray(searched)))
         _, med = timed(lambda f=compacted: f(tours0, focus), repeats)
         out[f"local_search_compact_{first}_{batch}_seconds"] = med

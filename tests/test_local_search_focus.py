@@ -109,14 +109,16 @@ def uneven():
     return d, nb, pert, focus
 
 
+@pytest.mark.parametrize("loop", ["ants", "colony"])
 @pytest.mark.parametrize("compact", [(0, 1), (1, 2), (2, 4), (3, 9), (2, 20)])
-def test_compacted_focused_search_gives_the_same_tours_moves_and_steps(uneven, compact):
+def test_compacted_focused_search_gives_the_same_tours_moves_and_steps(uneven, compact, loop):
     d, nb, pert, focus = uneven
     want = [np.asarray(x) for x in two_opt(pert, d, nb, or_opt=True, active=focus,
                                            focus_width=4, return_steps=True)]
     assert want[2].max() > 2 * max(compact[0], 1) and want[2].min() < want[2].max()
     got = [np.asarray(x) for x in two_opt(pert, d, nb, or_opt=True, active=focus,
-                                          focus_width=4, return_steps=True, compact=compact)]
+                                          focus_width=4, return_steps=True, compact=compact,
+                                          loop=loop)]
     for w, g in zip(want, got, strict=True):
         np.testing.assert_array_equal(g, w)
 

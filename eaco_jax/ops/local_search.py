@@ -460,22 +460,33 @@ def _focused_carry(tours: Array, active0: Array) -> tuple[Array, ...]:
 def _focused_compacted(
     tours: Array, active0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
     per_step: int, or_opt: bool, acceptance: str, width: int, first_steps: int, batch: int,
+    loop: str = "ants",
 ) -> tuple[Array, Array, Array]:
     """:func:`_focused_one` of every tour, the same tours, moves and steps, without the whole
     colony waiting for its slowest ant: every ant runs at most ``first_steps`` steps, then the
     ants still searching go on ``batch`` at a time (unfinished first), each batch until its
     last ant is done. A vmapped loop runs as many steps as its slowest ant, and most focused
-    searches end within a few steps."""
+    searches end within a few steps. ``loop`` (:data:`LOOPS`): how the colony and each batch
+    loop over their steps (a vmapped loop per ant, or :func:`_colony_steps`)."""
     m, n = tours.shape
     body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
                               width, n)
     batch = min(int(batch), m)
     carry = _focused_carry(tours, active0)
 
-    def capped(c):
-        return jax.lax.while_loop(lambda x: live(x) & (x[4] < first_steps), body, c)
+    if loop == "colony":
+        carry = _colony_steps(body, live, carry, first_steps)
 
-    carry = jax.vmap(capped)(carry)
+        def finish(sub):
+            return _colony_steps(body, live, sub)
+    else:
+        def capped(c):
+            return jax.lax.while_loop(lambda x: live(x) & (x[4] < first_steps), body, c)
+
+        carry = jax.vmap(capped)(carry)
+
+        def finish(sub):
+            return jax.vmap(lambda x: jax.lax.while_loop(live, body, x))(sub)
     still = jax.vmap(live)(carry)
     order = jnp.argsort(~still, stable=True).astype(jnp.int32)  # unfinished ants first
     count = jnp.sum(still)
@@ -484,8 +495,7 @@ def _focused_compacted(
         c, carry = state
         # a start past m - batch is clamped: the overlap holds finished ants, left as they are
         ids = jax.lax.dynamic_slice(order, (c * batch,), (batch,))
-        sub = jax.tree_util.tree_map(lambda x: x[ids], carry)
-        sub = jax.vmap(lambda x: jax.lax.while_loop(live, body, x))(sub)
+        sub = finish(jax.tree_util.tree_map(lambda x: x[ids], carry))
         carry = jax.tree_util.tree_map(lambda x, y: x.at[ids].set(y), carry, sub)
         return c + 1, carry
 
@@ -494,29 +504,40 @@ def _focused_compacted(
     return carry[0], carry[3], carry[4]
 
 
+def _colony_steps(body, live, carry: tuple[Array, ...], most: int | None = None
+                  ) -> tuple[Array, ...]:
+    """Every ant's focused search as one loop over the colony's steps (at most ``most`` of
+    them; None: until every ant is done): a vmapped ``while_loop`` selects, after every step,
+    each ant's whole carry (its (n,) tour, positions and bits) between the old and the new,
+    so that ants already done keep theirs. Here a done ant's step changes nothing anyway (no
+    active city, or no moves left to apply), so the step runs for every ant without that
+    select, and only the step count is kept per ant. Stopped after ``most`` steps, every ant
+    still searching has run exactly ``most``."""
+
+    def step(state):
+        carry, alive, t = state
+        tour, pos, active, moves, _ = jax.vmap(body)(carry)
+        carry = (tour, pos, active, moves, carry[4] + alive.astype(jnp.int32))
+        return carry, jax.vmap(live)(carry), t + 1
+
+    def go_on(state):
+        more = jnp.any(state[1])
+        return more if most is None else more & (state[2] < most)
+
+    carry, _, _ = jax.lax.while_loop(go_on, step, (carry, jax.vmap(live)(carry), jnp.int32(0)))
+    return carry
+
+
 def _focused_colony(
     tours: Array, active0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
     per_step: int, or_opt: bool, acceptance: str, width: int,
 ) -> tuple[Array, Array, Array]:
     """:func:`_focused_one` of every tour, the same tours, moves and steps, as one loop over
-    the colony's steps instead of a vmapped loop: a vmapped ``while_loop`` selects, after
-    every step, each ant's whole carry (its (n,) tour, positions and bits) between the old
-    and the new, so that ants already done keep theirs. Here a done ant's step changes
-    nothing anyway (no active city, or no moves left to apply), so the step runs for every
-    ant without that select, and only the step count is kept per ant."""
+    the colony's steps (:func:`_colony_steps`) instead of a vmapped loop."""
     n = tours.shape[1]
     body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
                               width, n)
-    carry = _focused_carry(tours, active0)
-
-    def step(state):
-        carry, alive = state
-        tour, pos, active, moves, steps = jax.vmap(body)(carry)
-        carry = (tour, pos, active, moves, carry[4] + alive.astype(jnp.int32))
-        return carry, jax.vmap(live)(carry)
-
-    (tour, _, _, moves, steps), _ = jax.lax.while_loop(
-        lambda state: jnp.any(state[1]), step, (carry, jax.vmap(live)(carry)))
+    tour, _, _, moves, steps = _colony_steps(body, live, _focused_carry(tours, active0))
     return tour, moves, steps
 
 
@@ -605,9 +626,9 @@ def two_opt(
       focus_width: with ``active``, the most cities a step evaluates.
       compact: with ``active``, ``(first_steps, batch)``: the same search without the colony
         waiting for its slowest ant (:func:`_focused_compacted`); None: one loop.
-      loop: with ``active`` and no ``compact``, :data:`LOOPS`: "ants" (a vmapped loop, one
-        per tour) or "colony" (one loop over the colony's steps, :func:`_focused_colony`);
-        the same tours, moves and steps either way.
+      loop: with ``active``, :data:`LOOPS`: "ants" (a vmapped loop, one per tour) or
+        "colony" (one loop over the colony's steps, :func:`_focused_colony`), also for each
+        of ``compact``'s batches; the same tours, moves and steps either way.
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
     """
@@ -640,7 +661,7 @@ def two_opt(
                                   f"batch >= 1, got {compact}")
             out, moves, steps = _focused_compacted(
                 tours, active, dist, cand, cand_d, mm, moves_per_step, or_opt, acceptance,
-                width, first_steps, batch)
+                width, first_steps, batch, loop)
         elif loop == "colony":
             out, moves, steps = _focused_colony(
                 tours, active, dist, cand, cand_d, mm, moves_per_step, or_opt, acceptance,
