@@ -144,8 +144,7 @@ def _greedy_sequential(valid: Array, overlap: Array, budget: Array) -> Array:
 #: "rounds" in parallel rounds (:func:`_greedy_disjoint`), "unrolled" the same with its first
 #: :data:`UNROLLED_ROUNDS` rounds inline, "sequential" one by one
 ACCEPTANCES = ("rounds", "unrolled", "sequential")
-#: the rounds "unrolled" runs before its loop: a step's longest chain of overlapping moves is
-#: rarely longer (docs/tsp_large.md counts them)
+#: the rounds "unrolled" runs before its loop (the same moves whatever its value; a cost choice)
 UNROLLED_ROUNDS = 4
 
 #: how :func:`two_opt` loops over the steps of a focused search (the same tours either way):
