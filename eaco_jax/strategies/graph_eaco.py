@@ -277,11 +277,13 @@ class GraphEACO(Strategy):
     ls_compact: tuple[int, int] | None = None
     #: how the "moves" constructions hold an ant's tour between moves: "arrays" (rewritten
     #: at each move) or "pieces" (a piecewise map of the reference's positions, O(moves) a
-    #: move); the same tours, a cost choice (``ops.construction_moves.PLANS``)
+    #: move); the same tours, a cost choice (``ops.construction_moves.PLANS``; with
+    #: ``ls_loop`` chosen by claims tsp-5k/15k-h100-pieces-colony-ask-ratio)
     moves_plan: str = "pieces"
     #: how the focused batched search loops over its steps: "ants" (a vmapped loop per tour)
     #: or "colony" (one loop over the colony, without the vmapped loop's select of every
-    #: ant's carry after each step); the same tours, a cost choice (``ops.local_search.LOOPS``)
+    #: ant's carry after each step); the same tours, a cost choice (``ops.local_search.LOOPS``;
+    #: with ``moves_plan`` chosen by claims tsp-5k/15k-h100-pieces-colony-ask-ratio)
     ls_loop: str = "colony"
     #: how a step of the batched searches accepts its disjoint moves: "rounds" (a loop of
     #: parallel rounds) or "unrolled" (its first rounds inline, skipping a GPU's wait on the
