@@ -148,7 +148,7 @@ ACCEPTANCES = ("rounds", "unrolled", "sequential")
 UNROLLED_ROUNDS = 4
 
 #: how :func:`two_opt` loops over the steps of a focused search (the same tours either way):
-#: "ants", a vmapped loop per tour; "colony", one loop over the colony (:func:`_focused_colony`)
+#: "ants", a vmapped loop per tour; "colony", one loop over the colony (:func:`_colony_steps`)
 LOOPS = ("ants", "colony")
 
 
@@ -387,7 +387,7 @@ class _Beside:
 
 def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_step: int,
                  or_opt: bool, acceptance: str, width: int, n: int):
-    """(body, live) of one tour's focused search (:func:`_focused_one`): a step on the carry
+    """(body, live) of one tour's focused search (:func:`_focused`): a step on the carry
     ``(tour, pos, active, moves, steps)``, and whether the search goes on."""
     slots = jnp.arange(width)
 
@@ -425,93 +425,23 @@ def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_st
     return body, live
 
 
-def _focused_one(
-    tour: Array, pos0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
-    per_step: int, or_opt: bool, acceptance: str, active0: Array, width: int,
-) -> tuple[Array, Array, Array]:
-    """The batched search of one tour from the cities ``active0`` only (don't-look bits, as
-    Focused ACO searches an ant that changed a few edges of the best tour): each step
-    evaluates the moves of at most ``width`` active cities (the first in index order), not of
-    all ``n``; applies the best disjoint improving ones as :func:`_two_opt_one` does; clears
-    the bit of every evaluated city without an improving move and sets the bits of both ends
-    of every edge the step removed. It ends when no bit is set (or after ``max_moves``): a
-    tour that is a local optimum except near a few changed edges costs O(width k) a step
-    instead of O(n k), plus the O(n) rewrite of the tour."""
-    n = tour.shape[0]
-    body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
-                              width, n)
-    zero = jnp.int32(0)
-    tour, _, _, moves, steps = jax.lax.while_loop(
-        live, body, (tour, pos0, jnp.asarray(active0, bool), zero, zero))
-    return tour, moves, steps
-
-
-def _focused_carry(tours: Array, active0: Array) -> tuple[Array, ...]:
-    """The starting carry ``(tour, pos, active, moves, steps)`` of every tour's focused
-    search (:func:`_focused_fns`), stacked over the colony."""
-    m, n = tours.shape
-    cities = jnp.arange(n, dtype=jnp.int32)
-    pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
-    zeros = jnp.zeros((m,), jnp.int32)
-    return tours, pos0, jnp.asarray(active0, bool), zeros, zeros
-
-
-def _focused_compacted(
-    tours: Array, active0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
-    per_step: int, or_opt: bool, acceptance: str, width: int, first_steps: int, batch: int,
-    loop: str = "ants",
-) -> tuple[Array, Array, Array]:
-    """:func:`_focused_one` of every tour, the same tours, moves and steps, without the whole
-    colony waiting for its slowest ant: every ant runs at most ``first_steps`` steps, then the
-    ants still searching go on ``batch`` at a time (unfinished first), each batch until its
-    last ant is done. A vmapped loop runs as many steps as its slowest ant, and most focused
-    searches end within a few steps. ``loop`` (:data:`LOOPS`): how the colony and each batch
-    loop over their steps (a vmapped loop per ant, or :func:`_colony_steps`)."""
-    m, n = tours.shape
-    body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
-                              width, n)
-    batch = min(int(batch), m)
-    carry = _focused_carry(tours, active0)
-
-    if loop == "colony":
-        carry = _colony_steps(body, live, carry, first_steps)
-
-        def finish(sub):
-            return _colony_steps(body, live, sub)
-    else:
-        def capped(c):
-            return jax.lax.while_loop(lambda x: live(x) & (x[4] < first_steps), body, c)
-
-        carry = jax.vmap(capped)(carry)
-
-        def finish(sub):
-            return jax.vmap(lambda x: jax.lax.while_loop(live, body, x))(sub)
-    still = jax.vmap(live)(carry)
-    order = jnp.argsort(~still, stable=True).astype(jnp.int32)  # unfinished ants first
-    count = jnp.sum(still)
-
-    def chunk(state):
-        c, carry = state
-        # a start past m - batch is clamped: the overlap holds finished ants, left as they are
-        ids = jax.lax.dynamic_slice(order, (c * batch,), (batch,))
-        sub = finish(jax.tree_util.tree_map(lambda x: x[ids], carry))
-        carry = jax.tree_util.tree_map(lambda x, y: x.at[ids].set(y), carry, sub)
-        return c + 1, carry
-
-    _, carry = jax.lax.while_loop(lambda st: st[0] * batch < count, chunk,
-                                  (jnp.int32(0), carry))
-    return carry[0], carry[3], carry[4]
+def _vmapped_steps(body, live, carry: tuple[Array, ...], most: int | None = None
+                   ) -> tuple[Array, ...]:
+    """Every ant's focused search as a vmapped ``while_loop``, one per ant (each at most
+    ``most`` steps; None: until it is done)."""
+    go_on = live if most is None else (lambda x: live(x) & (x[4] < most))
+    return jax.vmap(lambda x: jax.lax.while_loop(go_on, body, x))(carry)
 
 
 def _colony_steps(body, live, carry: tuple[Array, ...], most: int | None = None
                   ) -> tuple[Array, ...]:
     """Every ant's focused search as one loop over the colony's steps (at most ``most`` of
-    them; None: until every ant is done): a vmapped ``while_loop`` selects, after every step,
-    each ant's whole carry (its (n,) tour, positions and bits) between the old and the new,
-    so that ants already done keep theirs. Here a done ant's step changes nothing anyway (no
-    active city, or no moves left to apply), so the step runs for every ant without that
-    select, and only the step count is kept per ant. Stopped after ``most`` steps, every ant
-    still searching has run exactly ``most``."""
+    them; None: until every ant is done): a vmapped ``while_loop`` (:func:`_vmapped_steps`)
+    selects, after every step, each ant's whole carry (its (n,) tour, positions and bits)
+    between the old and the new, so that ants already done keep theirs. Here a done ant's
+    step changes nothing anyway (no active city, or no moves left to apply), so the step runs
+    for every ant without that select, and only the step count is kept per ant. Stopped after
+    ``most`` steps, every ant still searching has run exactly ``most``."""
 
     def step(state):
         carry, alive, t = state
@@ -527,17 +457,57 @@ def _colony_steps(body, live, carry: tuple[Array, ...], most: int | None = None
     return carry
 
 
-def _focused_colony(
+#: the step loops of :data:`LOOPS`
+_STEPS = {"ants": _vmapped_steps, "colony": _colony_steps}
+
+
+def _focused(
     tours: Array, active0: Array, dist: Array, cand: Array, cand_d: Array, max_moves: int,
-    per_step: int, or_opt: bool, acceptance: str, width: int,
+    per_step: int, or_opt: bool, acceptance: str, width: int, loop: str,
+    compact: tuple[int, int] | None,
 ) -> tuple[Array, Array, Array]:
-    """:func:`_focused_one` of every tour, the same tours, moves and steps, as one loop over
-    the colony's steps (:func:`_colony_steps`) instead of a vmapped loop."""
-    n = tours.shape[1]
+    """The batched search of every tour from the cities ``active0`` only (don't-look bits, as
+    Focused ACO searches an ant that changed a few edges of the best tour): each step
+    evaluates the moves of at most ``width`` active cities (the first in index order), not of
+    all ``n``; applies the best disjoint improving ones as :func:`_two_opt_one` does; clears
+    the bit of every evaluated city without an improving move and sets the bits of both ends
+    of every edge the step removed. A tour's search ends when no bit is set (or after
+    ``max_moves``): a tour that is a local optimum except near a few changed edges costs
+    O(width k) a step instead of O(n k), plus the O(n) rewrite of the tour. ``loop`` picks the
+    step loop (:data:`_STEPS`); ``compact`` = ``(first_steps, batch)``: every ant runs at most
+    ``first_steps`` steps, then the ants still searching go on ``batch`` at a time
+    (unfinished first), each batch until its last ant is done, so that the colony does not
+    wait for its slowest ant. The same tours, moves and steps whatever the loop and
+    compaction. Returns (tours, moves, steps)."""
+    m, n = tours.shape
     body, live = _focused_fns(dist, cand, cand_d, max_moves, per_step, or_opt, acceptance,
                               width, n)
-    tour, _, _, moves, steps = _colony_steps(body, live, _focused_carry(tours, active0))
-    return tour, moves, steps
+    steps = _STEPS[loop]
+    cities = jnp.arange(n, dtype=jnp.int32)
+    pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
+    zeros = jnp.zeros((m,), jnp.int32)
+    carry = (tours, pos0, jnp.asarray(active0, bool), zeros, zeros)
+    if compact is None:
+        carry = steps(body, live, carry)
+        return carry[0], carry[3], carry[4]
+    first_steps, batch = compact
+    batch = min(int(batch), m)
+    carry = steps(body, live, carry, first_steps)
+    still = jax.vmap(live)(carry)
+    order = jnp.argsort(~still, stable=True).astype(jnp.int32)  # unfinished ants first
+    count = jnp.sum(still)
+
+    def chunk(state):
+        c, carry = state
+        # a start past m - batch is clamped: the overlap holds finished ants, left as they are
+        ids = jax.lax.dynamic_slice(order, (c * batch,), (batch,))
+        sub = steps(body, live, jax.tree_util.tree_map(lambda x: x[ids], carry))
+        carry = jax.tree_util.tree_map(lambda x, y: x.at[ids].set(y), carry, sub)
+        return c + 1, carry
+
+    _, carry = jax.lax.while_loop(lambda st: st[0] * batch < count, chunk,
+                                  (jnp.int32(0), carry))
+    return carry[0], carry[3], carry[4]
 
 
 def _two_opt_one(
@@ -549,17 +519,12 @@ def _two_opt_one(
     per_step: int,
     or_opt: bool = False,
     acceptance: str = "rounds",
-    active0: Array | None = None,
-    width: int = 128,
 ) -> tuple[Array, Array, Array]:
     """2-opt (and Or-opt) of one tour with candidate lists (see module docstring):
-    (tour, moves, steps). With ``active0`` the search is focused (:func:`_focused_one`)."""
+    (tour, moves, steps); the focused search is :func:`_focused`."""
     n = tour.shape[0]
     cities = jnp.arange(n, dtype=jnp.int32)
     pos0 = jnp.zeros(n, jnp.int32).at[tour].set(cities)
-    if active0 is not None:
-        return _focused_one(tour, pos0, dist, cand, cand_d, max_moves, per_step, or_opt,
-                            acceptance, active0, width)
 
     def body(carry):
         tour, pos, moves, steps, _ = carry
@@ -620,13 +585,13 @@ def two_opt(
       acceptance: how a step accepts its disjoint moves, :data:`ACCEPTANCES` (the same tours
         either way; "sequential" is the one-by-one reference, kept to time against).
       active: ``(m, n)`` bool, search from these cities only, with don't-look bits
-        (:func:`_focused_one`; Focused ACO: the ends of the edges an ant changed,
+        (:func:`_focused`; Focused ACO: the ends of the edges an ant changed,
         :func:`changed_cities`). None: every city, every step.
       focus_width: with ``active``, the most cities a step evaluates.
       compact: with ``active``, ``(first_steps, batch)``: the same search without the colony
-        waiting for its slowest ant (:func:`_focused_compacted`); None: one loop.
+        waiting for its slowest ant (:func:`_focused`); None: one loop.
       loop: with ``active``, :data:`LOOPS`: "ants" (a vmapped loop, one per tour) or
-        "colony" (one loop over the colony's steps, :func:`_focused_colony`), also for each
+        "colony" (one loop over the colony's steps, :func:`_colony_steps`), also for each
         of ``compact``'s batches; the same tours, moves and steps either way.
     Returns:
       improved int32 tours ``(m, n)``, each no longer than its input.
@@ -654,21 +619,12 @@ def two_opt(
             raise ConfigError(f"focus_width must be >= 1, got {focus_width}")
         width = min(int(focus_width), n)
         if compact is not None:
-            first_steps, batch = (int(x) for x in compact)
-            if first_steps < 0 or batch < 1:
+            compact = tuple(int(x) for x in compact)
+            if compact[0] < 0 or compact[1] < 1:
                 raise ConfigError(f"compact=(first_steps, batch) needs first_steps >= 0 and "
                                   f"batch >= 1, got {compact}")
-            out, moves, steps = _focused_compacted(
-                tours, active, dist, cand, cand_d, mm, moves_per_step, or_opt, acceptance,
-                width, first_steps, batch, loop)
-        elif loop == "colony":
-            out, moves, steps = _focused_colony(
-                tours, active, dist, cand, cand_d, mm, moves_per_step, or_opt, acceptance,
-                width)
-        else:
-            out, moves, steps = jax.vmap(
-                lambda t, a: _two_opt_one(t, dist, cand, cand_d, mm, moves_per_step, or_opt,
-                                          acceptance, a, width))(tours, active)
+        out, moves, steps = _focused(tours, active, dist, cand, cand_d, mm, moves_per_step,
+                                     or_opt, acceptance, width, loop, compact)
     if return_steps:
         return out, moves, steps
     return (out, moves) if return_moves else out
