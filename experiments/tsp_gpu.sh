@@ -1,0 +1,129 @@
+#!/usr/bin/env bash
+# Issue 33's large-TSP runs on a CUDA machine that has JAX with CUDA (nothing else needed: the
+# TSP uses no MuJoCo). Run from the repository root; results go to $OUT (the device tool's
+# output folder) as one .tgz per call, holding r/*.json and r/device.txt (GPU, driver, jax,
+# date, commit and the uncommitted changes the call ran with).
+#
+#   bash experiments/tsp_gpu.sh prof SIZE...            # one iteration of the default colony
+#       after WARM (100) warm iterations on each size's selection instance (instance seed 1):
+#       tsp_iteration_profile.py; PROFILE_ARGS adds its options (e.g. "--trace"); with
+#       BEFORE_DIR (a folder of the repo mirroring eaco_jax/, carried) the same profile runs
+#       first on the package with those files laid over it ("before", the same machine)
+#   ARMS="a=--acceptance rounds;b=--acceptance unrolled" bash experiments/tsp_gpu.sh arms SIZE...
+#       # the profile of each arm (its tsp_iteration_profile.py options), one machine
+#   SEEDS="0 1 2" ARMS="label=eaco args;..." bash experiments/tsp_gpu.sh select N SECONDS
+#       # selection runs on random instance seed 1 (never reported), one warm-up per arm
+#   bash experiments/tsp_gpu.sh rep d15112|N SECONDS "SEEDS" WARM
+#       # the report: each seed a fresh `eaco tsp` process on the call clock (tsp_large.py),
+#       # on d15112 or the random instance of N cities with instance seed 0; WARM > 0 first
+#       # runs one discarded warm-up of WARM seconds that fills the compile caches (d15112 on
+#       # d15112 itself, run seed 99: the same programs; N on its seed-1 instance); EARGS
+#       # passes eaco options (none: the defaults)
+#   bash experiments/tsp_gpu.sh hist N SECONDS [eaco args]
+#       # one run on N's selection instance with its per-iteration history kept
+#
+# The package is installed once per machine into /tmp/site (REFRESH=1 reinstalls it: do so
+# after changing the code on a machine that is still warm).
+set -u
+REPO=$(pwd)
+export MUJOCO_GL=disable PYTHONUNBUFFERED=1
+SITE=/tmp/site
+install() {  # DEST [overlay folder]
+    rm -rf "$1"
+    python3 -m pip install -q --no-deps --no-build-isolation --no-compile --target "$1" "$REPO" \
+        > /tmp/pip.log 2>&1 || { tail -20 /tmp/pip.log; exit 1; }
+    [ -z "${2:-}" ] || cp -r "$REPO/$2/." "$1/eaco_jax/"
+}
+if [ ! -d $SITE/eaco_jax ] || [ "${REFRESH:-0}" = 1 ]; then install $SITE; fi
+export PYTHONPATH=$SITE
+cd /tmp  # not the repository root: its source tree would shadow the installed package
+W=/tmp/tspw
+R=$OUT/r
+mkdir -p $R $W
+{
+    nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo "no GPU"
+    python3 -c "import jax, jaxlib; print(jax.__version__, jaxlib.__version__, jax.devices())"
+    date -u
+    (cd $REPO && git rev-parse HEAD && git status --short --untracked-files=no \
+        && git diff --stat) 2>/dev/null
+} > $R/device.txt
+profile() {  # OUTFILE SIZES... (options from $PROFILE_ARGS)
+    local out=$1; shift
+    # shellcheck disable=SC2086
+    python3 $REPO/experiments/tsp_iteration_profile.py $(for n in "$@"; do echo --size $n; done) \
+        --warm ${WARM:-100} --repeats 5 ${PROFILE_ARGS:-} --work $W --out $out 2>&1 \
+        | grep -v Warning | tail -4
+}
+large() {  # tsp_large.py ARGS... (eaco options from $EARGS)
+    python3 $REPO/experiments/tsp_large.py "$@" ${EARGS:+--eaco-args="$EARGS"} \
+        --process-timeout 200 --work $W
+}
+phase=$1; shift
+case $phase in
+prof)
+    if [ -n "${BEFORE_DIR:-}" ]; then
+        install /tmp/site_before "$BEFORE_DIR"
+        PYTHONPATH=/tmp/site_before profile $R/profile_before.json "$@"
+    fi
+    profile $R/profile.json "$@"
+    ;;
+arms)
+    IFS=';' read -ra arms <<< "$ARMS"
+    for arm in "${arms[@]}"; do
+        PROFILE_ARGS="${PROFILE_ARGS:-} ${arm#*=}" profile "$R/profile_${arm%%=*}.json" "$@"
+    done
+    ;;
+select)
+    n=$1; s=$2
+    IFS=';' read -ra arms <<< "$ARMS"
+    for arm in "${arms[@]}"; do
+        label=${arm%%=*}
+        EARGS="${arm#*=}" large --sizes $n --seconds ${WARMUP:-20} --instance-seeds 1 --seeds 0 \
+            --out /tmp/warm_$label.json > /dev/null 2>&1
+        for sd in ${SEEDS:-0 1 2}; do
+            EARGS="${arm#*=}" large --sizes $n --seconds $s --instance-seeds 1 --seeds $sd \
+                --out $R/sel_${n}_${label}_s$sd.json 2>&1 | grep -E "over|gap" | tail -1
+        done
+    done
+    ;;
+rep)
+    k=$1; s=$2; seeds=$3; wu=$4
+    if [ "$k" = d15112 ]; then
+        if [ "$wu" != 0 ]; then  # its own programs: d15112's tour sums take one int32 word
+            large --sizes --instances d15112 --instance-seconds $wu --seeds 99 \
+                --out /tmp/warm_rep.json > /dev/null 2>&1
+        fi
+        for sd in $seeds; do
+            large --sizes --instances d15112 --seeds $sd --out $R/rep_d15112_s$sd.json 2>&1 \
+                | grep -o '"gap_percent": [0-9.]*'
+        done
+    else
+        if [ "$wu" != 0 ]; then
+            large --sizes $k --seconds $wu --instance-seeds 1 --seeds 0 \
+                --out /tmp/warm_rep.json > /dev/null 2>&1
+        fi
+        for sd in $seeds; do
+            large --sizes $k --seconds $s --instance-seeds 0 --seeds $sd \
+                --out $R/rep_${k}_s$sd.json 2>&1 | grep -o '"gap_percent": [0-9.]*'
+        done
+    fi
+    ;;
+hist)
+    n=$1; s=$2; shift 2
+    f=$(python3 -c "import sys; sys.path.insert(0, '$REPO/experiments')
+from pathlib import Path; from tsp_large import random_instance
+print(random_instance(Path('$W'), $n, 1))")
+    python3 -m eaco_jax tsp "$f" --max-seconds 12 --clock call --seed 9 --out /tmp/hwarm \
+        > /dev/null 2>&1
+    python3 -m eaco_jax tsp "$f" --max-seconds $s --clock call --seed 0 "$@" \
+        --out /tmp/h_${n}_$s 2>&1 | tail -4
+    cp /tmp/h_${n}_$s/history.csv $R/hist_${n}_$s.csv
+    python3 -c "import json; d = json.load(open('/tmp/h_${n}_$s/result.json')); d.pop('tour')
+json.dump(d, open('$R/hist_${n}_$s.json', 'w'), indent=1)"
+    ;;
+*)
+    echo "usage: bash experiments/tsp_gpu.sh prof|arms|select|rep|hist ... (see its header)" >&2
+    exit 2
+    ;;
+esac
+(cd $OUT && tar czf tsp_${phase}_$(date +%H%M%S).tgz r && rm -rf r)
