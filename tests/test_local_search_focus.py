@@ -243,3 +243,40 @@ def test_a_colony_with_ls_loop_colony_builds_the_same_tours():
         GraphEACO(ls_loop="threads")
     with pytest.raises(ConfigError, match="ls_acceptance"):
         GraphEACO(ls_acceptance="greedy")
+
+
+def test_each_step_evaluates_the_first_set_bits_of_the_mask_it_carries(broken):
+    """A step's cities and the count of set bits are carried from the step before (so that
+    the loop's test reads the count instead of reducing all n bits again): they must be those
+    of the bits as that step left them, every step, and the steps are the public search's."""
+    import jax
+
+    from eaco_jax.ops import local_search as ls
+    from eaco_jax.ops.compaction import blocks_of, first_true
+
+    d, nb, _, pert, focus = broken
+    n, width = d.shape[0], 8
+    dist = ls.as_distances(d)
+    cand = ls._candidates(dist, nb)
+    cand_d = dist[np.arange(n)[:, None], cand]
+    body, live = ls._focused_fns(dist, cand, cand_d, 4 * n, 32, True, "rounds", width, n)
+    body, live = jax.jit(body), jax.jit(live)
+    focus = focus.copy()
+    focus[:, n - 1] = True  # the last city too: its bit is set from the "no city" index's
+    out, _, steps = two_opt(pert, d, nb, or_opt=True, active=focus, focus_width=width,
+                            return_steps=True)
+    for i in range(len(pert)):
+        tour = np.asarray(pert[i], np.int32)
+        active = np.zeros(blocks_of(n), bool)  # as the search holds them: padded with False
+        active[:n] = focus[i]
+        at, count = first_true(active, width, 0)
+        carry = (tour, np.argsort(tour).astype(np.int32), active, at, count, np.int32(0),
+                 np.int32(0))
+        while bool(live(carry)):
+            carry = body(carry)
+            at, count = first_true(carry[2], width, 0)
+            np.testing.assert_array_equal(np.asarray(carry[3]), np.asarray(at))
+            assert int(carry[4]) == int(count)
+            assert not np.asarray(carry[2])[n:].any()  # no bit past the cities
+        assert int(carry[6]) == int(np.asarray(steps)[i]) > 1
+        np.testing.assert_array_equal(np.asarray(carry[0]), np.asarray(out)[i])

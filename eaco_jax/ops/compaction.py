@@ -26,6 +26,13 @@ BLOCK = 128
 EXACT_INPUT = 256
 
 
+def blocks_of(n: int) -> int:
+    """The length :func:`prefix_sum` pads ``n`` entries to (a multiple of :data:`BLOCK`): an
+    array made that long from the start (zeros or False at its end) is summed without being
+    copied into a padded one first, one pass over it fewer."""
+    return -(-int(n) // BLOCK) * BLOCK
+
+
 def prefix_sum(x: Array, bound: int, matmul: bool | None = None) -> Array:
     """Inclusive int32 prefix sum of the 1-d integer (or bool) ``x``, whose entries the caller
     knows to lie in ``[-bound, bound]`` (a static int).

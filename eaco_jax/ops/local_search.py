@@ -40,7 +40,7 @@ import jax
 import jax.numpy as jnp
 
 from eaco_jax.errors import ConfigError
-from eaco_jax.ops.compaction import first_true, prefix_sum
+from eaco_jax.ops.compaction import blocks_of, first_true, prefix_sum
 
 Array = jax.Array
 
@@ -216,8 +216,8 @@ def _apply_disjoint(
     # the accepted move (if any) that owns each position, by a prefix sum over the ranges
     # (each entry one label, or two of adjacent ranges apart: at most top in size)
     label = jnp.where(acc, jnp.arange(1, top + 1, dtype=jnp.int32), 0)
-    owner = jnp.zeros(n + 1, jnp.int32).at[tl].add(label).at[th + 1].add(-label)
-    owner = prefix_sum(owner, top)[:n]
+    owner = jnp.zeros(blocks_of(n + 1), jnp.int32).at[tl].add(label).at[th + 1].add(-label)
+    owner = prefix_sum(owner, top)[:n]  # (made at the padded length: no padded copy)
     inside = owner > 0
     o = jnp.maximum(owner - 1, 0)
     a, b = tl[o], th[o]
@@ -388,13 +388,18 @@ class _Beside:
 def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_step: int,
                  or_opt: bool, acceptance: str, width: int, n: int):
     """(body, live) of one tour's focused search (:func:`_focused`): a step on the carry
-    ``(tour, pos, active, moves, steps)``, and whether the search goes on."""
+    ``(tour, pos, active, at, count, moves, steps)``, and whether the search goes on. ``at``
+    and ``count`` are :func:`first_true` of ``active`` (the cities the next step evaluates,
+    and how many bits are set), found at the end of the step that set the bits: the test
+    whether the search goes on reads ``count`` instead of reducing all ``n`` bits again.
+    ``active`` may be longer than ``n`` (False past ``n``; :func:`_focused` makes it
+    :func:`~eaco_jax.ops.compaction.blocks_of` ``n`` long, which :func:`first_true` sums
+    without padding it every step)."""
     slots = jnp.arange(width)
 
     def body(carry):
-        tour, pos, active, moves, steps = carry
+        tour, pos, active, at, count, moves, steps = carry
         succ, pred = _Beside(tour, pos, 1), _Beside(tour, pos, -1)
-        at, count = first_true(active, width, 0)  # (jnp.nonzero contends on a GPU)
         valid = slots < count
         gain, lo, hi = _two_opt_moves(pos, succ, pred, dist, cand, cand_d, at)
         gain = jnp.where(valid, gain, -jnp.inf)
@@ -407,20 +412,22 @@ def _focused_fns(dist: Array, cand: Array, cand_d: Array, max_moves: int, per_st
             orr = (og, *rest)
         new_tour, new_pos, applied, cut = _apply_proposals(
             tour, pos, (gain, lo, hi), orr, per_step, max_moves - moves, acceptance, ends=True)
+        none = active.shape[0]  # an index past the bits: the scatters below drop it
         # evaluated, nothing to gain: bit cleared (the padding slots touch nothing)
-        active = active.at[jnp.where(valid & ~found, at, n)].set(False, mode="drop")
+        active = active.at[jnp.where(valid & ~found, at, none)].set(False, mode="drop")
         # of the ends of every removed edge, the cities whose pair of tour neighbours changed
         # (no other city's can): bit set
         c = jnp.minimum(cut, n - 1)
         s0, p0 = succ[c], pred[c]
         s1, p1 = _Beside(new_tour, new_pos, 1)[c], _Beside(new_tour, new_pos, -1)[c]
         same = ((s1 == s0) & (p1 == p0)) | ((s1 == p0) & (p1 == s0))
-        active = active.at[jnp.where(same, n, cut)].set(True, mode="drop")
-        return new_tour, new_pos, active, moves + applied, steps + 1
+        active = active.at[jnp.where(same | (cut >= n), none, cut)].set(True, mode="drop")
+        at, count = first_true(active, width, 0)  # (jnp.nonzero contends on a GPU)
+        return new_tour, new_pos, active, at, count, moves + applied, steps + 1
 
     def live(carry):
-        _, _, active, moves, _ = carry
-        return jnp.any(active) & (moves < max_moves)
+        count, moves = carry[4], carry[5]
+        return (count > 0) & (moves < max_moves)
 
     return body, live
 
@@ -429,7 +436,7 @@ def _vmapped_steps(body, live, carry: tuple[Array, ...], most: int | None = None
                    ) -> tuple[Array, ...]:
     """Every ant's focused search as a vmapped ``while_loop``, one per ant (each at most
     ``most`` steps; None: until it is done)."""
-    go_on = live if most is None else (lambda x: live(x) & (x[4] < most))
+    go_on = live if most is None else (lambda x: live(x) & (x[-1] < most))
     return jax.vmap(lambda x: jax.lax.while_loop(go_on, body, x))(carry)
 
 
@@ -445,8 +452,8 @@ def _colony_steps(body, live, carry: tuple[Array, ...], most: int | None = None
 
     def step(state):
         carry, alive, t = state
-        tour, pos, active, moves, _ = jax.vmap(body)(carry)
-        carry = (tour, pos, active, moves, carry[4] + alive.astype(jnp.int32))
+        stepped = jax.vmap(body)(carry)  # the step count (last) is kept per ant
+        carry = stepped[:-1] + (carry[-1] + alive.astype(jnp.int32),)
         return carry, jax.vmap(live)(carry), t + 1
 
     def go_on(state):
@@ -486,10 +493,12 @@ def _focused(
     cities = jnp.arange(n, dtype=jnp.int32)
     pos0 = jax.vmap(lambda t: jnp.zeros(n, jnp.int32).at[t].set(cities))(tours)
     zeros = jnp.zeros((m,), jnp.int32)
-    carry = (tours, pos0, jnp.asarray(active0, bool), zeros, zeros)
+    active0 = jnp.pad(jnp.asarray(active0, bool), ((0, 0), (0, blocks_of(n) - n)))
+    at0, count0 = jax.vmap(lambda a: first_true(a, width, 0))(active0)
+    carry = (tours, pos0, active0, at0, count0, zeros, zeros)
     if compact is None:
         carry = steps(body, live, carry)
-        return carry[0], carry[3], carry[4]
+        return carry[0], carry[-2], carry[-1]
     first_steps, batch = compact
     batch = min(int(batch), m)
     carry = steps(body, live, carry, first_steps)
@@ -507,7 +516,7 @@ def _focused(
 
     _, carry = jax.lax.while_loop(lambda st: st[0] * batch < count, chunk,
                                   (jnp.int32(0), carry))
-    return carry[0], carry[3], carry[4]
+    return carry[0], carry[-2], carry[-1]
 
 
 def _two_opt_one(
