@@ -8,7 +8,7 @@ from eaco_jax.ops.compaction import first_true
 
 def test_first_true_is_nonzero_and_counts_the_whole_mask():
     rng = np.random.default_rng(0)
-    for n in (1, 7, 37):
+    for n in (1, 7, 37, 300, 5000):
         for p in (0.0, 0.1, 0.5, 1.0):
             mask = jnp.asarray(rng.random(n) < p)
             for size in (1, 5, n, n + 13):

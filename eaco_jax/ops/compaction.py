@@ -3,8 +3,8 @@
 ``jnp.nonzero(mask, size=s)`` counts the entries below each index with a scatter-add of all
 ``n`` entries into ``s`` bins; on a GPU most of them land in the same few bins (every index
 past the last True entry adds to one), and such atomic adds to one address run one after
-another. :func:`first_true` computes the same indices with one prefix sum and one scatter
-whose writes all go to different places.
+another. :func:`first_true` computes the same indices with one prefix sum and a binary
+search in it.
 
 A long ``jnp.cumsum`` is a ``reduce_window`` on a GPU that reads each entry many times;
 :func:`prefix_sum` takes the sums within blocks of :data:`BLOCK` entries as one matrix
@@ -58,9 +58,10 @@ def prefix_sum(x: Array, bound: int, matmul: bool | None = None) -> Array:
 def first_true(mask: Array, size: int, fill: int) -> tuple[Array, Array]:
     """(indices, count): the indices of the first ``size`` True entries of the 1-d ``mask`` in
     increasing order, ``fill`` after them (``jnp.nonzero(mask, size=size, fill_value=fill)``),
-    and the number of True entries of the whole mask (int32)."""
-    rank = prefix_sum(mask, 1) - 1
-    where = jnp.where(mask & (rank < size), rank, size)
-    out = jnp.full((size,), fill, jnp.int32)
-    out = out.at[where].set(jnp.arange(mask.shape[0], dtype=jnp.int32), mode="drop")
-    return out, rank[-1] + 1
+    and the number of True entries of the whole mask (int32). The j-th index is where the
+    prefix sum of the mask first reaches j + 1: a binary search of ``size`` entries (unrolled:
+    no loop to wait on) instead of a scatter that visits all n."""
+    total = prefix_sum(mask, 1)
+    idx = jnp.searchsorted(total, jnp.arange(1, size + 1, dtype=jnp.int32), side="left",
+                           method="scan_unrolled").astype(jnp.int32)
+    return jnp.where(idx < mask.shape[0], idx, jnp.int32(fill)), total[-1]
