@@ -26,7 +26,7 @@ SMALL = dict(instance="eil51", ants=8, local_search="none", crossover="none",
 #: the same on the sparse path, whose colony starts from a first tour (2-opt on the Hilbert order)
 SPARSE = {**SMALL, "sparse": "on", "local_search": "2opt"}
 TIMING = ("clock", "from", "budget_seconds", "startup_seconds", "setup_seconds",
-          "compile_seconds", "loop_seconds", "total_seconds")
+          "compile_seconds", "loop_seconds", "total_seconds", "setup_parts")
 
 
 def test_deadline_rule_reads_the_progress_clock():
@@ -80,6 +80,11 @@ def test_a_passed_deadline_returns_the_first_tour():
     parts = sum(r[k] for k in ("startup_seconds", "setup_seconds", "compile_seconds",
                                "loop_seconds"))
     assert math.isclose(parts, r["total_seconds"], rel_tol=1e-9)
+    # the parts of setup timed apart lie inside it
+    assert set(r["setup_parts"]) == {"backend_seconds", "read_seconds"}
+    assert min(r["setup_parts"].values()) >= 0
+    assert r["setup_parts"]["read_seconds"] > 0  # eil51 is read and its lists built
+    assert sum(r["setup_parts"].values()) <= r["setup_seconds"]
 
     # the chunk is compiled now: a budget from the call that outlasts the setup searches
     t0 = time.monotonic()

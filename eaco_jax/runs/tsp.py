@@ -393,9 +393,12 @@ def build(s: TspSettings) -> Built:
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     sparse = {"auto": None, "on": True, "off": False}[s.sparse]
-    row = sparse_defaults(jax.default_backend())
+    t0 = time.perf_counter()
+    row = sparse_defaults(jax.default_backend())  # the first call starts the backend
+    t1 = time.perf_counter()
     problem = load_tsplib(s.instance, neighbors=s.neighbors, sparse=sparse,
                           sparse_from=row.from_cities if row is not None else None)
+    parts = {"backend_seconds": t1 - t0, "read_seconds": time.perf_counter() - t1}
     auto = colony_defaults(int(problem.n), jax.default_backend(), s.max_seconds)
     ants = auto.ants if s.ants is None else int(s.ants)
     ls_neighbors = auto.ls_neighbors if s.ls_neighbors is None else int(s.ls_neighbors)
@@ -437,7 +440,7 @@ def build(s: TspSettings) -> Built:
         budget["chunk_seconds"] = float(s.chunk_seconds)
         if is_sparse(problem):
             budget["chunk_size"] = PACED_CHUNK
-    return Built(problem, strategy, params, budget)
+    return Built(problem, strategy, params, budget, extra={"setup_parts": parts})
 
 
 def with_resolved_settings(checkpointing: Any, built: Built) -> Any:
@@ -549,7 +552,8 @@ def run(s: TspSettings, *, progress: bool = False, checkpointing: Any = None,
         "seconds": float(result.seconds),
         "compile_seconds": float(result.compile_seconds),
         "seconds_per_iteration": float(result.seconds_per_iteration),
-        "timing": timing(s, result, origin, origin_name, entered_at, ended_at),
+        "timing": timing(s, result, origin, origin_name, entered_at, ended_at,
+                         built.extra.get("setup_parts", {})),
         "sparse": is_sparse(problem),
         "neighbors": int(problem.neighbors.shape[1]),
         "tours_per_second": tours / float(result.seconds) if result.seconds > 0 else None,
@@ -578,11 +582,14 @@ def returned_tour(result: Any) -> tuple[np.ndarray, str]:
 
 
 def timing(s: TspSettings, result: Any, origin: float, origin_name: str, entered_at: float,
-           ended_at: float) -> dict[str, Any]:
+           ended_at: float, setup_parts: dict[str, float] | None = None) -> dict[str, Any]:
     """Where the wall time went, from the call (``origin``) to the end of the search: start-up
     (the call to :func:`run`: interpreter and imports for the command), compilation, the
     search loop's compute, and setup (the rest: reading the instance, candidate lists, the
-    first tour, the host's work between chunks); with the clock and budget the run used."""
+    first tour, the host's work between chunks); with the clock and budget the run used.
+    ``setup_parts``: the parts of setup timed apart (:func:`build`: ``backend_seconds``, the
+    start of JAX's backend, e.g. a GPU's; ``read_seconds``, the instance and its candidate
+    lists), the rest of setup being the first state's program and the host's work."""
     total = ended_at - origin
     compile_s = float(result.compile_seconds)
     loop = float(result.seconds) - compile_s
@@ -590,7 +597,8 @@ def timing(s: TspSettings, result: Any, origin: float, origin_name: str, entered
     return {"clock": s.clock, "from": origin_name, "budget_seconds": s.max_seconds,
             "startup_seconds": startup, "setup_seconds": max(total - startup - compile_s - loop,
                                                              0.0),
-            "compile_seconds": compile_s, "loop_seconds": loop, "total_seconds": total}
+            "compile_seconds": compile_s, "loop_seconds": loop, "total_seconds": total,
+            "setup_parts": dict(setup_parts or {})}
 
 
 def peak_memory() -> dict[str, int | None]:
