@@ -446,9 +446,10 @@ def _colony_steps(body, live, carry: tuple[Array, ...], most: int | None = None
     them; None: until every ant is done): a vmapped ``while_loop`` (:func:`_vmapped_steps`)
     selects, after every step, each ant's whole carry (its (n,) tour, positions and bits)
     between the old and the new, so that ants already done keep theirs. Here a done ant's
-    step changes nothing anyway (no active city, or no moves left to apply), so the step runs
-    for every ant without that select, and only the step count is kept per ant. Stopped after
-    ``most`` steps, every ant still searching has run exactly ``most``."""
+    step changes no tour, positions or move count anyway (no active city, or no moves left to
+    apply; an ant stopped by the move cap may still clear bits, which nothing reads after), so
+    the step runs for every ant without that select, and only the step count is kept per ant.
+    Stopped after ``most`` steps, every ant still searching has run exactly ``most``."""
 
     def step(state):
         carry, alive, t = state
