@@ -394,12 +394,13 @@ def build(s: TspSettings) -> Built:
 
     sparse = {"auto": None, "on": True, "off": False}[s.sparse]
     t0 = time.perf_counter()
-    row = sparse_defaults(jax.default_backend())  # the first call starts the backend
+    backend = jax.default_backend()  # the first call starts the backend
+    row = sparse_defaults(backend)
     t1 = time.perf_counter()
     problem = load_tsplib(s.instance, neighbors=s.neighbors, sparse=sparse,
                           sparse_from=row.from_cities if row is not None else None)
     parts = {"backend_seconds": t1 - t0, "read_seconds": time.perf_counter() - t1}
-    auto = colony_defaults(int(problem.n), jax.default_backend(), s.max_seconds)
+    auto = colony_defaults(int(problem.n), backend, s.max_seconds)
     ants = auto.ants if s.ants is None else int(s.ants)
     ls_neighbors = auto.ls_neighbors if s.ls_neighbors is None else int(s.ls_neighbors)
     local_search = auto.local_search if s.local_search == "auto" else s.local_search
