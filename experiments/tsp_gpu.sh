@@ -28,13 +28,13 @@ set -u
 REPO=$(pwd)
 export MUJOCO_GL=disable PYTHONUNBUFFERED=1
 SITE=/tmp/site
-install() {  # DEST [overlay folder]
+install_package() {  # DEST [overlay folder]
     rm -rf "$1"
     python3 -m pip install -q --no-deps --no-build-isolation --no-compile --target "$1" "$REPO" \
         > /tmp/pip.log 2>&1 || { tail -20 /tmp/pip.log; exit 1; }
     [ -z "${2:-}" ] || cp -r "$REPO/$2/." "$1/eaco_jax/"
 }
-if [ ! -d $SITE/eaco_jax ] || [ "${REFRESH:-0}" = 1 ]; then install $SITE; fi
+if [ ! -d $SITE/eaco_jax ] || [ "${REFRESH:-0}" = 1 ]; then install_package $SITE; fi
 export PYTHONPATH=$SITE
 cd /tmp  # not the repository root: its source tree would shadow the installed package
 W=/tmp/tspw
@@ -62,7 +62,7 @@ phase=$1; shift
 case $phase in
 prof)
     if [ -n "${BEFORE_DIR:-}" ]; then
-        install /tmp/site_before "$BEFORE_DIR"
+        install_package /tmp/site_before "$BEFORE_DIR"
         PYTHONPATH=/tmp/site_before profile $R/profile_before.json "$@"
     fi
     profile $R/profile.json "$@"
