@@ -44,8 +44,10 @@ mkdir -p $R $W
     nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo "no GPU"
     python3 -c "import jax, jaxlib; print(jax.__version__, jaxlib.__version__, jax.devices())"
     date -u
-    (cd $REPO && git rev-parse HEAD && git status --short --untracked-files=no \
-        && git diff --stat) 2>/dev/null
+    # the code's changes only (results left out of an upload would list as deletions)
+    (cd $REPO && git rev-parse HEAD \
+        && git status --short --untracked-files=no -- eaco_jax experiments/*.py experiments/*.sh \
+        && git diff --stat -- eaco_jax experiments/*.py experiments/*.sh) 2>/dev/null
 } > $R/device.txt
 profile() {  # OUTFILE SIZES... (options from $PROFILE_ARGS)
     local out=$1; shift
