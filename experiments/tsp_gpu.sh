@@ -21,6 +21,13 @@
 #       # passes eaco options (none: the defaults)
 #   bash experiments/tsp_gpu.sh hist N SECONDS [eaco args]
 #       # one run on N's selection instance with its per-iteration history kept
+#   FLAGS="label=XLA flags;..." bash experiments/tsp_gpu.sh flags N ITERATIONS
+#       # each arm's XLA_FLAGS on N's selection instance, ITERATIONS iterations of the default
+#       # colony, run seed 0, twice (the first compiles; equal best lengths: the same tours)
+#   bash experiments/tsp_gpu.sh diag N SECONDS
+#       # where the call's time goes, on N's selection instance after one warm-up: a run
+#       # with JAX's compile log and -X importtime, then one under cProfile (slower: its
+#       # figures are shares, not times)
 #
 # The package is installed once per machine into /tmp/site (REFRESH=1 reinstalls it: do so
 # after changing the code on a machine that is still warm).
@@ -44,6 +51,7 @@ mkdir -p $R $W
     nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo "no GPU"
     python3 -c "import jax, jaxlib; print(jax.__version__, jaxlib.__version__, jax.devices())"
     date -u
+    echo "XLA_FLAGS=${XLA_FLAGS:-}"
     # the code's changes only (results left out of an upload would list as deletions)
     (cd $REPO && git rev-parse HEAD \
         && git status --short --untracked-files=no -- eaco_jax experiments/*.py experiments/*.sh \
@@ -123,8 +131,48 @@ print(random_instance(Path('$W'), $n, 1))")
     python3 -c "import json; d = json.load(open('/tmp/h_${n}_$s/result.json')); d.pop('tour')
 json.dump(d, open('$R/hist_${n}_$s.json', 'w'), indent=1)"
     ;;
+flags)
+    n=$1; its=$2
+    f=$(python3 -c "import sys; sys.path.insert(0, '$REPO/experiments')
+from pathlib import Path; from tsp_large import random_instance
+print(random_instance(Path('$W'), $n, 1))")
+    IFS=';' read -ra arms <<< "$FLAGS"
+    for rep in 1 2; do
+        for arm in "${arms[@]}"; do
+            label=${arm%%=*}
+            XLA_FLAGS="${arm#*=}" python3 -m eaco_jax tsp "$f" --iterations $its --seed 0 \
+                --out /tmp/f_$label > /tmp/f_$label.log 2>&1 || tail -3 /tmp/f_$label.log
+            python3 -c "import json; d = json.load(open('/tmp/f_$label/result.json')); d.pop('tour')
+d['xla_flags'] = '''${arm#*=}'''
+json.dump(d, open('$R/flags_${label}_$rep.json', 'w'), indent=1)
+print('$label', $rep, d['best_length'], round(d['seconds_per_iteration'], 4), round(d['compile_seconds'], 1))"
+        done
+    done
+    ;;
+diag)
+    n=$1; s=$2
+    f=$(python3 -c "import sys; sys.path.insert(0, '$REPO/experiments')
+from pathlib import Path; from tsp_large import random_instance
+print(random_instance(Path('$W'), $n, 1))")
+    python3 -m eaco_jax tsp "$f" --max-seconds 12 --clock call --seed 9 --out /tmp/dwarm \
+        > /dev/null 2>&1
+    JAX_LOG_COMPILES=1 JAX_EXPLAIN_CACHE_MISSES=1 python3 -X importtime -m eaco_jax tsp "$f" \
+        --max-seconds $s --clock call --seed 0 --out /tmp/d_log > $R/diag_log_stdout.txt \
+        2> $R/diag_log_stderr.txt
+    python3 -m cProfile -o /tmp/d.prof -m eaco_jax tsp "$f" --max-seconds $s --clock call \
+        --seed 0 --out /tmp/d_prof > /dev/null 2>&1
+    python3 -c "import pstats, sys
+sys.stdout = open('$R/diag_profile.txt', 'w')
+p = pstats.Stats('/tmp/d.prof')
+p.sort_stats('cumulative').print_stats(120)
+p.sort_stats('tottime').print_stats(60)"
+    for k in log prof; do
+        python3 -c "import json; d = json.load(open('/tmp/d_$k/result.json')); d.pop('tour')
+d.pop('history_best', None); json.dump(d, open('$R/diag_$k.json', 'w'), indent=1)"
+    done
+    ;;
 *)
-    echo "usage: bash experiments/tsp_gpu.sh prof|arms|select|rep|hist ... (see its header)" >&2
+    echo "usage: bash experiments/tsp_gpu.sh prof|arms|select|rep|hist|flags|diag ... (see its header)" >&2
     exit 2
     ;;
 esac
