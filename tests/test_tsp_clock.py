@@ -81,10 +81,13 @@ def test_a_passed_deadline_returns_the_first_tour():
                                "loop_seconds"))
     assert math.isclose(parts, r["total_seconds"], rel_tol=1e-9)
     # the parts of setup timed apart lie inside it
-    assert set(r["setup_parts"]) == {"backend_seconds", "read_seconds"}
+    assert set(r["setup_parts"]) == {"backend_seconds", "read_seconds",
+                                     "between_chunks_seconds"}
     assert min(r["setup_parts"].values()) >= 0
     assert r["setup_parts"]["read_seconds"] > 0  # eil51 is read and its lists built
     assert sum(r["setup_parts"].values()) <= r["setup_seconds"]
+    # one-iteration chunks: the host reads each one's history while the device waits
+    assert r["setup_parts"]["between_chunks_seconds"] > 0
 
     # the chunk is compiled now: a budget from the call that outlasts the setup searches
     t0 = time.monotonic()

@@ -336,6 +336,7 @@ def run(
         bar = tqdm(total=None if total >= UNCAPPED else total, initial=done,
                    desc=getattr(problem, "name", "eaco"), unit="it")
     signals = Signals(newline=bar is not None)
+    loop_from, compiled_before = time.perf_counter(), compile_seconds  # for host_seconds
     stopping = StopReason(rules or [], total, interrupted=signals,
                           exhausted=lambda s: exhausted(strategy, problem, s, max_evaluations))
     try:
@@ -408,11 +409,14 @@ def run(
             bar.close()
         if checkpointer is not None:
             checkpointer.close()
+    loop_wall = time.perf_counter() - loop_from
+    host_seconds = max(loop_wall - run_seconds - (compile_seconds - compiled_before), 0.0)
     if checkpointer is not None:  # the logged history, then what was not saved
         history = [checkpointer.history()] + history
 
     result = make_result(strategy, problem, state, history, batched, seeds, reason,
-                         compile_seconds, run_seconds, done - start, max_evaluations)
+                         compile_seconds, run_seconds, done - start, max_evaluations,
+                         host_seconds)
     if reason == "interrupted":
         raise Interrupted(interrupt_message(signals.name or "SIGINT", result, done, total,
                                             checkpointing), result)

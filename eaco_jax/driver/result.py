@@ -30,6 +30,9 @@ class Result:
     charges itself, e.g. gradient repair), never more than ``max_evaluations``.
     ``compile_seconds`` is what this call spent compiling or loading programs (the initial
     state's and the chunks'; 0 when the process had them), ``seconds`` that plus compute.
+    ``host_seconds`` is the host's work between the compiled chunks (reading each chunk's
+    history, stop rules, progress, checkpoints): wall time of the chunk loop that is neither
+    compute nor compilation, during which the device waits.
 
     The returned solution is re-checked on the host: ``best_cost`` is a TSP tour's exact
     length, and for constrained problems ``f``, ``violation`` and ``feasible`` come from a
@@ -56,6 +59,7 @@ class Result:
     feasible: np.ndarray | None = None
     tolerance: dict[str, float] | None = None
     precision: str = "float32"
+    host_seconds: float = 0.0
 
     def __post_init__(self) -> None:
         if self.f is None:
@@ -87,7 +91,7 @@ def shown_best(problem: Any, best_cost: Any) -> float:
 def make_result(strategy: Strategy, problem: Any, state: State,
                 history: list[dict[str, Any]], batched: bool, seeds: list[int], reason: str,
                 compile_seconds: float, run_seconds: float, iters_here: int,
-                max_evaluations: int | None) -> Result:
+                max_evaluations: int | None, host_seconds: float = 0.0) -> Result:
     """The :class:`Result`, with the returned solution re-checked on the host."""
     axis = 1 if batched else 0
     merged = merge_history(history, axis)
@@ -122,6 +126,7 @@ def make_result(strategy: Strategy, problem: Any, state: State,
         stop_reason=reason,
         max_evaluations=max_evaluations,
         precision="float64" if np.dtype("float64") in dtypes else "float32",
+        host_seconds=host_seconds,
         **extra,
     )
 

@@ -590,7 +590,8 @@ def timing(s: TspSettings, result: Any, origin: float, origin_name: str, entered
     first tour, the host's work between chunks); with the clock and budget the run used.
     ``setup_parts``: the parts of setup timed apart (:func:`build`: ``backend_seconds``, the
     start of JAX's backend, e.g. a GPU's; ``read_seconds``, the instance and its candidate
-    lists), the rest of setup being the first state's program and the host's work."""
+    lists; the driver: ``between_chunks_seconds``, the host's work between the compiled
+    chunks, while the device waits), the rest of setup being the first state's program."""
     total = ended_at - origin
     compile_s = float(result.compile_seconds)
     loop = float(result.seconds) - compile_s
@@ -599,7 +600,8 @@ def timing(s: TspSettings, result: Any, origin: float, origin_name: str, entered
             "startup_seconds": startup, "setup_seconds": max(total - startup - compile_s - loop,
                                                              0.0),
             "compile_seconds": compile_s, "loop_seconds": loop, "total_seconds": total,
-            "setup_parts": dict(setup_parts or {})}
+            "setup_parts": {**(setup_parts or {}),
+                            "between_chunks_seconds": float(result.host_seconds)}}
 
 
 def peak_memory() -> dict[str, int | None]:
