@@ -113,8 +113,10 @@ rep)
                 --out /tmp/warm_rep.json > /dev/null 2>&1
         fi
         for sd in $seeds; do
+            # the gap to LKH-3 where the reference is stored, else only over the BHH estimate
             large --sizes $k --seconds $s --instance-seeds 0 --seeds $sd \
-                --out $R/rep_${k}_s$sd.json 2>&1 | grep -o '"gap_percent": [0-9.]*'
+                --out $R/rep_${k}_s$sd.json 2>&1 \
+                | grep -oE '"(gap_percent|over_bhh_percent)": [0-9.]+' | tail -2
         done
     fi
     ;;
