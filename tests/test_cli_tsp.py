@@ -82,6 +82,25 @@ def test_local_search_settings_reach_the_strategy(tmp_path):
     assert len(res.stderr.strip().splitlines()) == 1
 
 
+def test_ls_acceptance_reaches_the_strategy_and_keeps_the_tours():
+    """--ls-acceptance unrolled runs the focused colony's search with its first greedy rounds
+    inline: the record says so, and the tour is the one the default rounds loop finds (the
+    same moves); an unknown name is a one-line error."""
+    from eaco_jax.runs import tsp
+
+    kw = dict(instance="eil51", sparse="on", ants=8, iterations=3, max_new_edges=8,
+              construction="moves", merge_ants=4, seed=3, local_search="or-2opt")
+    built = tsp.build(tsp.TspSettings(**kw, ls_acceptance="unrolled"))
+    assert built.strategy.ls_acceptance == "unrolled"
+    rounds = tsp.run(tsp.TspSettings(**kw))
+    unrolled = tsp.run(tsp.TspSettings(**kw, ls_acceptance="unrolled"))
+    assert (rounds["ls_acceptance"], unrolled["ls_acceptance"]) == ("rounds", "unrolled")
+    assert unrolled["tour"] == rounds["tour"]
+    res = CliRunner().invoke(app, ["tsp", "eil51", "--ls-acceptance", "eager", "--json"])
+    assert res.exit_code == 2 and "ls_acceptance" in res.stderr, res.output
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
 def test_setting_choices_are_the_strategys():
     """The settings list the strategy's names themselves (runs/tsp.py does not import the
     strategy, and so jax, to print --help): the two lists must not drift apart."""
@@ -95,6 +114,7 @@ def test_setting_choices_are_the_strategys():
     assert choices["preset"] == ("auto", *graph_eaco.PRESETS)
     assert choices["crossover"] == ("auto", *graph_eaco.CROSSOVERS)
     assert choices["mutation"] == ("auto", *graph_eaco.MUTATIONS)
+    assert choices["ls_acceptance"] == graph_eaco.LS_ACCEPTANCES
 
 
 def test_auto_help_is_read_from_the_colony_table():

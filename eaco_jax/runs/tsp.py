@@ -340,6 +340,12 @@ class TspSettings:
                              "as Focused ACO's source solution; it lost to best on the 5k "
                              "selection instance, docs/tsp_large.md)",
                              choices=("best", "iteration"))
+    ls_acceptance: str = setting("rounds", "with --max-new-edges: how each step of the "
+                                 "batched local search accepts its disjoint improving moves: "
+                                 "rounds (a loop of greedy rounds), unrolled (the first "
+                                 "rounds inline, then the loop: fewer waits on a GPU), "
+                                 "sequential (one by one); the same moves either way",
+                                 choices=("rounds", "unrolled", "sequential"))
     chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
                                           "compiled call about this many seconds' worth of "
                                           "iterations at the last call's pace (the sparse "
@@ -424,6 +430,7 @@ def build(s: TspSettings) -> Built:
                          mutation=s.mutation, preset=preset, max_new_edges=max_new_edges,
                          ls_focus_width=(focus or None) if max_new_edges is not None else None,
                          merge_ants=merge or None, reference=s.reference,
+                         ls_acceptance=s.ls_acceptance,
                          construction=(construction if construction.startswith("moves")
                                        else "ants"),
                          construction_fallback=("auto" if construction.startswith("moves")
@@ -473,7 +480,7 @@ def focused_settings(st: Any, given: str, sparse: bool) -> dict[str, Any]:
         construction = "scan" if sparse and given == "auto" else given
     return {"max_new_edges": st.max_new_edges, "construction": construction,
             "ls_focus_width": st.ls_focus_width or 0, "merge_ants": st.merge_ants or 0,
-            "reference": st.reference}
+            "reference": st.reference, "ls_acceptance": st.ls_acceptance}
 
 
 def row_metrics(built: Built, result: Any, row: int) -> dict[str, Any]:
