@@ -68,6 +68,11 @@ large() {  # tsp_large.py ARGS... (eaco options from $EARGS)
     python3 $REPO/experiments/tsp_large.py "$@" ${EARGS:+--eaco-args="$EARGS"} \
         --process-timeout 200 --work $W
 }
+selection_instance() {  # N: the path of N's random selection instance (instance seed 1)
+    python3 -c "import sys; sys.path.insert(0, '$REPO/experiments')
+from pathlib import Path; from tsp_large import random_instance
+print(random_instance(Path('$W'), $1, 1))"
+}
 phase=$1; shift
 case $phase in
 prof)
@@ -122,9 +127,7 @@ rep)
     ;;
 hist)
     n=$1; s=$2; shift 2
-    f=$(python3 -c "import sys; sys.path.insert(0, '$REPO/experiments')
-from pathlib import Path; from tsp_large import random_instance
-print(random_instance(Path('$W'), $n, 1))")
+    f=$(selection_instance $n)
     python3 -m eaco_jax tsp "$f" --max-seconds 12 --clock call --seed 9 --out /tmp/hwarm \
         > /dev/null 2>&1
     python3 -m eaco_jax tsp "$f" --max-seconds $s --clock call --seed 0 "$@" \
@@ -135,9 +138,7 @@ json.dump(d, open('$R/hist_${n}_$s.json', 'w'), indent=1)"
     ;;
 flags)
     n=$1; its=$2
-    f=$(python3 -c "import sys; sys.path.insert(0, '$REPO/experiments')
-from pathlib import Path; from tsp_large import random_instance
-print(random_instance(Path('$W'), $n, 1))")
+    f=$(selection_instance $n)
     IFS=';' read -ra arms <<< "$FLAGS"
     for rep in 1 2; do
         for arm in "${arms[@]}"; do
@@ -153,9 +154,7 @@ print('$label', $rep, d['best_length'], round(d['seconds_per_iteration'], 4), ro
     ;;
 diag)
     n=$1; s=$2
-    f=$(python3 -c "import sys; sys.path.insert(0, '$REPO/experiments')
-from pathlib import Path; from tsp_large import random_instance
-print(random_instance(Path('$W'), $n, 1))")
+    f=$(selection_instance $n)
     python3 -m eaco_jax tsp "$f" --max-seconds 12 --clock call --seed 9 --out /tmp/dwarm \
         > /dev/null 2>&1
     JAX_LOG_COMPILES=1 JAX_EXPLAIN_CACHE_MISSES=1 python3 -X importtime -m eaco_jax tsp "$f" \
