@@ -24,6 +24,9 @@
 #   FLAGS="label=XLA flags;..." bash experiments/tsp_gpu.sh flags N ITERATIONS
 #       # each arm's XLA_FLAGS on N's selection instance, ITERATIONS iterations of the default
 #       # colony, run seed 0, twice (the first compiles; equal best lengths: the same tours)
+#   ENVS="label=VAR=value VAR2=value;..." bash experiments/tsp_gpu.sh envs N SECONDS
+#       # each arm's environment on N's selection instance after one warm-up: a call-clock
+#       # run of SECONDS, run seed 0, twice per arm (interleaved); the records keep `timing`
 #   bash experiments/tsp_gpu.sh diag N SECONDS
 #       # where the call's time goes, on N's selection instance after one warm-up: a run
 #       # with JAX's compile log and -X importtime, then one under cProfile (slower: its
@@ -152,6 +155,29 @@ print('$label', $rep, d['best_length'], round(d['seconds_per_iteration'], 4), ro
         done
     done
     ;;
+envs)
+    n=$1; s=$2
+    f=$(selection_instance $n)
+    python3 -m eaco_jax tsp "$f" --max-seconds 12 --clock call --seed 9 --out /tmp/ewarm \
+        > /dev/null 2>&1
+    IFS=';' read -ra arms <<< "$ENVS"
+    for rep in 1 2; do
+        for arm in "${arms[@]}"; do
+            label=${arm%%=*}
+            # shellcheck disable=SC2086
+            env ${arm#*=} python3 -m eaco_jax tsp "$f" --max-seconds $s --clock call --seed 0 \
+                --out /tmp/e_$label > /tmp/e_$label.log 2>&1 || tail -3 /tmp/e_$label.log
+            python3 -c "import json; d = json.load(open('/tmp/e_$label/result.json')); d.pop('tour')
+d.pop('history_best', None); d['environment'] = '''${arm#*=}'''
+json.dump(d, open('$R/envs_${label}_$rep.json', 'w'), indent=1)
+t = d['timing']; p = t['setup_parts']
+print('$label', $rep, d['best_length'], d['iterations'], round(d['seconds_per_iteration'], 4),
+      'setup', round(t['setup_seconds'], 2), 'read', round(p['read_seconds'], 2),
+      'between', round(p.get('between_chunks_seconds', -1), 2),
+      'compile', round(t['compile_seconds'], 2), 'loop', round(t['loop_seconds'], 2))"
+        done
+    done
+    ;;
 diag)
     n=$1; s=$2
     f=$(selection_instance $n)
@@ -173,7 +199,7 @@ d.pop('history_best', None); json.dump(d, open('$R/diag_$k.json', 'w'), indent=1
     done
     ;;
 *)
-    echo "usage: bash experiments/tsp_gpu.sh prof|arms|select|rep|hist|flags|diag ... (see its header)" >&2
+    echo "usage: bash experiments/tsp_gpu.sh prof|arms|select|rep|hist|flags|envs|diag ... (see its header)" >&2
     exit 2
     ;;
 esac
