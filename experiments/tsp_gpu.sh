@@ -24,9 +24,10 @@
 #   FLAGS="label=XLA flags;..." bash experiments/tsp_gpu.sh flags N ITERATIONS
 #       # each arm's XLA_FLAGS on N's selection instance, ITERATIONS iterations of the default
 #       # colony, run seed 0, twice (the first compiles; equal best lengths: the same tours)
-#   ENVS="label=VAR=value VAR2=value;..." bash experiments/tsp_gpu.sh envs N SECONDS
-#       # each arm's environment on N's selection instance after one warm-up: a call-clock
-#       # run of SECONDS, run seed 0, twice per arm (interleaved); the records keep `timing`
+#   ENVS="label=VAR=value VAR2=value|eaco options;..." bash experiments/tsp_gpu.sh envs N SECONDS
+#       # each arm's environment (and options after a |) on N's selection instance after a
+#       # discarded 10 s warm-up of each arm: a call-clock run of SECONDS, run seed 0, twice
+#       # per arm (interleaved); the records keep `timing`
 #   bash experiments/tsp_gpu.sh diag N SECONDS
 #       # where the call's time goes, on N's selection instance after one warm-up: a run
 #       # with JAX's compile log and -X importtime, then one under cProfile (slower: its
@@ -158,17 +159,23 @@ print('$label', $rep, d['best_length'], round(d['seconds_per_iteration'], 4), ro
 envs)
     n=$1; s=$2
     f=$(selection_instance $n)
-    python3 -m eaco_jax tsp "$f" --max-seconds 12 --clock call --seed 9 --out /tmp/ewarm \
-        > /dev/null 2>&1
     IFS=';' read -ra arms <<< "$ENVS"
-    for rep in 1 2; do
+    for rep in 0 1 2; do  # rep 0: each arm's discarded warm-up (its programs compiled once)
         for arm in "${arms[@]}"; do
             label=${arm%%=*}
+            spec=${arm#*=}; assign=${spec%%|*}; opts=""
+            [[ $spec == *"|"* ]] && opts=${spec#*|}
+            if [ $rep = 0 ]; then
+                # shellcheck disable=SC2086
+                env $assign python3 -m eaco_jax tsp "$f" --max-seconds 10 --clock call --seed 9 \
+                    $opts --out /tmp/ewarm > /dev/null 2>&1
+                continue
+            fi
             # shellcheck disable=SC2086
-            env ${arm#*=} python3 -m eaco_jax tsp "$f" --max-seconds $s --clock call --seed 0 \
-                --out /tmp/e_$label > /tmp/e_$label.log 2>&1 || tail -3 /tmp/e_$label.log
+            env $assign python3 -m eaco_jax tsp "$f" --max-seconds $s --clock call --seed 0 \
+                $opts --out /tmp/e_$label > /tmp/e_$label.log 2>&1 || tail -3 /tmp/e_$label.log
             python3 -c "import json; d = json.load(open('/tmp/e_$label/result.json')); d.pop('tour')
-d.pop('history_best', None); d['environment'] = '''${arm#*=}'''
+d.pop('history_best', None); d['environment'] = '''$assign'''; d['eaco_options'] = '''$opts'''
 json.dump(d, open('$R/envs_${label}_$rep.json', 'w'), indent=1)
 t = d['timing']; p = t['setup_parts']
 print('$label', $rep, d['best_length'], d['iterations'], round(d['seconds_per_iteration'], 4),
