@@ -101,8 +101,9 @@ def test_interrupt_lines_say_what_was_kept(tmp_path):
     (("tsp", "eil51", "--construction", "moves", "--max-new-edges", "4", "--iterations", "2",
       "--quiet"), "construction='moves' needs the sparse path (no distance matrix): pass "
      "--sparse on to eaco tsp"),
-    (("tsp", "eil51", "--chunk-seconds", "0"),
-     "chunk_seconds must be a finite number > 0, got 0.0; e.g. --chunk-seconds 0.2"),
+    (("tsp", "eil51", "--chunk-seconds", "-1"),
+     "chunk_seconds must be a finite number >= 0 (0: unpaced), got -1.0; e.g. --chunk-seconds "
+     "0.2"),
     (("tsp", "eil51", "--chunk-seconds", "0.2", "--iterations", "5"),
      "chunk_seconds paces a run that --max-seconds alone ends; drop --iterations"),
     (("tsp", "eil51", "--ls-focus-width", "-1"),

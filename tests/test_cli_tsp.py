@@ -114,7 +114,7 @@ def test_setting_choices_are_the_strategys():
     assert choices["preset"] == ("auto", *graph_eaco.PRESETS)
     assert choices["crossover"] == ("auto", *graph_eaco.CROSSOVERS)
     assert choices["mutation"] == ("auto", *graph_eaco.MUTATIONS)
-    assert choices["ls_acceptance"] == graph_eaco.LS_ACCEPTANCES
+    assert choices["ls_acceptance"] == ("auto", *graph_eaco.LS_ACCEPTANCES)
 
 
 def test_auto_help_is_read_from_the_colony_table():

@@ -4,6 +4,7 @@ where they should, its fallback follows the reference tour, its state grows line
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -362,6 +363,53 @@ def test_time_alone_reads_the_clock_after_every_sparse_iteration(tmp_path):
     with pytest.raises(ConfigError, match="chunk_seconds paces a run that --max-seconds alone"):
         run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="on", iterations=30,
                                           chunk_seconds=0.2))
+
+
+def test_the_pace_band_paces_and_unrolls_small_sparse_gpu_runs(tmp_path, monkeypatch):
+    """On a GPU the sparse path below the pace band's size paces --max-seconds runs at the
+    band's chunk_seconds and unrolls the first greedy rounds; 0 and explicit settings win, an
+    iteration budget stays unpaced, a CPU and sizes past the band get neither. The GPU
+    allocator setting is put in the environment unless the user set it."""
+    import dataclasses
+
+    import jax
+
+    from eaco_jax.runs import tsp as run_tsp
+
+    f = _write_tsp(tmp_path / "r300.tsp", np.random.default_rng(10).integers(0, 10**6, (300, 2)))
+
+    def built(**kw):
+        return run_tsp.build(run_tsp.TspSettings(instance=str(f), sparse="on", **kw))
+
+    cpu = built(max_seconds=5.0)  # this machine: no band
+    assert "chunk_seconds" not in cpu.budget and cpu.strategy.ls_acceptance == "rounds"
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    row = run_tsp.sparse_defaults("gpu")
+    band = run_tsp.row_pace(row, 300)
+    assert band is not None and band.ls_acceptance != "rounds"
+    gpu = built(max_seconds=5.0)
+    assert (gpu.budget["chunk_size"], gpu.budget["chunk_seconds"]) == (
+        run_tsp.PACED_CHUNK, band.chunk_seconds)
+    assert gpu.strategy.ls_acceptance == band.ls_acceptance
+    off = built(max_seconds=5.0, chunk_seconds=0, ls_acceptance="rounds")
+    assert "chunk_seconds" not in off.budget and off.budget["chunk_size"] == 1
+    assert off.strategy.ls_acceptance == "rounds"
+    counted = built(iterations=4)  # an iteration budget: whole chunks, unpaced
+    assert "chunk_seconds" not in counted.budget
+    assert counted.strategy.ls_acceptance == band.ls_acceptance
+    assert built(iterations=4, chunk_seconds=0).budget == counted.budget  # 0 is allowed
+    past = dataclasses.replace(row, paces=(dataclasses.replace(band, below=300),))
+    monkeypatch.setattr(run_tsp, "SPARSE_DEFAULTS", (past,))
+    assert run_tsp.row_pace(past, 299) is not None and run_tsp.row_pace(past, 300) is None
+    beyond = built(max_seconds=5.0)
+    assert "chunk_seconds" not in beyond.budget and beyond.strategy.ls_acceptance == "rounds"
+    (name, value), = run_tsp.GPU_ALLOCATOR.items()
+    monkeypatch.delenv(name, raising=False)
+    built(iterations=1)
+    assert os.environ[name] == value
+    monkeypatch.setenv(name, "user's")
+    built(iterations=1)
+    assert os.environ[name] == "user's"
 
 
 def test_a_focused_colony_searches_from_the_changed_edges(monkeypatch):

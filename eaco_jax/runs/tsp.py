@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -105,6 +106,19 @@ class ConstructionBand:
 
 
 @dataclasses.dataclass(frozen=True)
+class PaceBand:
+    """How sparse runs of fewer than ``below`` cities that ``--max-seconds`` alone ends pace
+    their compiled calls (``chunk_seconds``) and accept their local search's moves
+    (``ls_acceptance``), chosen by ``claim``: both change how fast the iterations come, not
+    the tours."""
+
+    below: int
+    chunk_seconds: float
+    ls_acceptance: str
+    claim: str
+
+
+@dataclasses.dataclass(frozen=True)
 class SparseRow:
     """What a sparse-path run on ``backend`` ("cpu", or "gpu" for any accelerator) resolves
     ``--max-new-edges`` (left out) and ``--construction auto`` to, named by the claim whose
@@ -127,6 +141,9 @@ class SparseRow:
     #: the construction by size: the first band whose ``below`` exceeds the cities; past the
     #: last band, ``construction`` with ``max_new_edges``
     constructions: tuple[ConstructionBand, ...] = ()
+    #: the pacing and move acceptance by size (:class:`PaceBand`); past the last band, none
+    #: (one iteration per compiled call, greedy rounds in a loop)
+    paces: tuple[PaceBand, ...] = ()
 
 
 #: the sparse path's focused construction by backend, each row chosen on the 10k selection
@@ -138,7 +155,10 @@ class SparseRow:
 #: 96-ant colony was measured). Its construction by size: 64 moves-new (each move inserting
 #: an edge the best tour lacks) below 8,000 cities and from 12,500 to 20,000, chosen on the 5k
 #: selection instance (lowest mean of six arms) and confirmed on the 15k one; the 10k one kept
-#: 128 moves. On a CPU
+#: 128 moves. Below 8,000 cities its calls are paced at 0.25 s with the first greedy rounds
+#: unrolled: on the 6k selection instance (30 s on the call clock, two runs each) that and
+#: allocating GPU memory on demand (:data:`GPU_ALLOCATOR`) reached the most iterations of five
+#: arms. On a CPU
 #: 32 new edges city by city
 #: (best of three; full construction: ``--construction scan``). The sparse path starts from
 #: 3,000 cities on a GPU (it beat the dense path there on a selection and a report instance;
@@ -157,7 +177,8 @@ SPARSE_DEFAULTS: tuple[SparseRow, ...] = (
                   ConstructionBand(12500, "moves", 128,
                                    "tsp-10k-h100-select-s32-default-over-bhh-mean"),
                   ConstructionBand(20000, "moves-new", 64,
-                                   "tsp-15k-h100-select-s32-new64-over-bhh-mean"))),
+                                   "tsp-15k-h100-select-s32-new64-over-bhh-mean")),
+              paces=(PaceBand(8000, 0.25, "unrolled", "tsp-6k-h100-arms-all-iterations-mean"),)),
     SparseRow("cpu", 32, "scan", "tsp-10k-cpu-select-scan32-over-bhh-mean",
               from_cities=2000, from_claim="tsp-cpu-sparse-from-2000-sparse-over-bhh-mean"),
 )
@@ -188,6 +209,18 @@ def bands_text(row: SparseRow) -> str:
 def row_ants(row: SparseRow, n: int) -> int | None:
     """The colony size ``row`` sets for ``n`` cities (None: :data:`COLONY_DEFAULTS` decides)."""
     return next((b.ants for b in row.ants if n < b.below), None)
+
+
+def row_pace(row: SparseRow | None, n: int) -> PaceBand | None:
+    """The :class:`PaceBand` ``row`` sets for ``n`` cities (None: none)."""
+    return None if row is None else next((b for b in row.paces if n < b.below), None)
+
+
+#: what ``eaco tsp`` sets for JAX's GPU client unless the environment already says: memory
+#: allocated on demand instead of most of the GPU's at the first transfer, which took about a
+#: second of a 30 s call on one H100 (the claim named); a CPU ignores it
+GPU_ALLOCATOR = {"XLA_PYTHON_CLIENT_PREALLOCATE": "false"}
+GPU_ALLOCATOR_CLAIM = "tsp-6k-h100-arms-noprealloc-read-seconds"
 
 
 def row_construction(row: SparseRow, n: int) -> tuple[str, int]:
@@ -340,24 +373,29 @@ class TspSettings:
                              "as Focused ACO's source solution; it lost to best on the 5k "
                              "selection instance, docs/tsp_large.md)",
                              choices=("best", "iteration"))
-    ls_acceptance: str = setting("rounds", "with --max-new-edges: how each step of the "
+    ls_acceptance: str = setting("auto", "with --max-new-edges: how each step of the "
                                  "batched local search accepts its disjoint improving moves: "
                                  "rounds (a loop of greedy rounds), unrolled (the first "
                                  "rounds inline, then the loop: fewer waits on a GPU), "
-                                 "sequential (one by one); the same moves either way",
-                                 choices=("rounds", "unrolled", "sequential"))
+                                 "sequential (one by one); the same moves either way; auto: "
+                                 "unrolled where the sparse path's pacing band applies (below "
+                                 "8,000 cities on a GPU), else rounds",
+                                 choices=("auto", "rounds", "unrolled", "sequential"))
     chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
                                           "compiled call about this many seconds' worth of "
                                           "iterations at the last call's pace (the sparse "
                                           f"path: up to {PACED_CHUNK}, instead of one), so "
-                                          "fast iterations make fewer host round trips")
+                                          "fast iterations make fewer host round trips; 0: "
+                                          "one chunk at a time unpaced; left out: 0.25 on "
+                                          "the sparse path below 8,000 cities on a GPU, "
+                                          "else unpaced")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
     def __post_init__(self) -> None:
         if self.chunk_seconds is not None and not (math.isfinite(self.chunk_seconds)
-                                                   and self.chunk_seconds > 0):
-            raise ConfigError(f"chunk_seconds must be a finite number > 0, got "
+                                                   and self.chunk_seconds >= 0):
+            raise ConfigError(f"chunk_seconds must be a finite number >= 0 (0: unpaced), got "
                               f"{self.chunk_seconds}; e.g. --chunk-seconds 0.2")
         check_settings(self, "ants", "iterations", "max_evaluations", "ls_best_k",
                        "ls_neighbors", "neighbors", "max_new_edges")
@@ -399,6 +437,8 @@ def build(s: TspSettings) -> Built:
     from eaco_jax.strategies.graph_eaco import GraphEACO
 
     sparse = {"auto": None, "on": True, "off": False}[s.sparse]
+    for name, value in GPU_ALLOCATOR.items():  # read when the backend starts (unless started)
+        os.environ.setdefault(name, value)
     t0 = time.perf_counter()
     backend = jax.default_backend()  # the first call starts the backend
     row = sparse_defaults(backend)
@@ -424,13 +464,16 @@ def build(s: TspSettings) -> Built:
         print(f"note: an explicit --max-new-edges or --construction leaves out this backend's "
               f"measured sparse row (its colony size by city count and merged ants): {ants} "
               "ants from the size table; pass --ants to choose", file=sys.stderr)
+    pace = row_pace(row, int(problem.n)) if is_sparse(problem) else None
+    acceptance = s.ls_acceptance if s.ls_acceptance != "auto" else (
+        pace.ls_acceptance if pace is not None else "rounds")
     focus = LS_FOCUS_WIDTH if s.ls_focus_width is None else int(s.ls_focus_width)
     strategy = GraphEACO(num_ants=ants, local_search=local_search, ls_best_k=ls_best_k,
                          ls_neighbors=ls_neighbors, crossover=s.crossover,
                          mutation=s.mutation, preset=preset, max_new_edges=max_new_edges,
                          ls_focus_width=(focus or None) if max_new_edges is not None else None,
                          merge_ants=merge or None, reference=s.reference,
-                         ls_acceptance=s.ls_acceptance,
+                         ls_acceptance=acceptance,
                          construction=(construction if construction.startswith("moves")
                                        else "ants"),
                          construction_fallback=("auto" if construction.startswith("moves")
@@ -441,11 +484,14 @@ def build(s: TspSettings) -> Built:
     # (a chunk of 15 overshot a 20 s budget by 20 s at 10,000 cities on a CPU)
     budget = budget_of(s, s.iterations, {"iterations": ITERATIONS},
                        chunk=SPARSE_CHUNK if is_sparse(problem) else None)
-    if s.chunk_seconds is not None:
-        if "chunk_size" not in budget:  # an iteration or evaluation budget: whole chunks
-            raise ConfigError("chunk_seconds paces a run that --max-seconds alone ends; drop "
-                              "--iterations / --max-evaluations, or drop --chunk-seconds")
-        budget["chunk_seconds"] = float(s.chunk_seconds)
+    chunk_seconds = s.chunk_seconds
+    if s.chunk_seconds and "chunk_size" not in budget:  # whole chunks
+        raise ConfigError("chunk_seconds paces a run that --max-seconds alone ends; drop "
+                          "--iterations / --max-evaluations, or drop --chunk-seconds")
+    if chunk_seconds is None and pace is not None and "chunk_size" in budget:
+        chunk_seconds = pace.chunk_seconds
+    if chunk_seconds:  # None or 0: unpaced
+        budget["chunk_seconds"] = float(chunk_seconds)
         if is_sparse(problem):
             budget["chunk_size"] = PACED_CHUNK
     return Built(problem, strategy, params, budget, extra={"setup_parts": parts})
@@ -463,6 +509,7 @@ def with_resolved_settings(checkpointing: Any, built: Built) -> Any:
     settings = {**info["settings"], "ants": int(st.num_ants), "local_search": st.local_search,
                 "ls_best_k": st.ls_best_k, "ls_neighbors": st.ls_neighbors,
                 "preset": st.preset,
+                "chunk_seconds": built.budget.get("chunk_seconds", 0.0),
                 **focused_settings(st, info["settings"].get("construction", "auto"),
                                    is_sparse(built.problem))}
     return dataclasses.replace(checkpointing, run_info={**info, "settings": settings})
