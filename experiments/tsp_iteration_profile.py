@@ -37,7 +37,7 @@ import eaco_jax as ea
 from eaco_jax.ops import local_search
 from eaco_jax.ops.tour_merge import merge_improvements
 from eaco_jax.problems import load_tsplib
-from eaco_jax.runs.tsp import LS_FOCUS_WIDTH, row_construction, sparse_defaults
+from eaco_jax.runs.tsp import LS_FOCUS_WIDTH, row_construction, row_pace, sparse_defaults
 from eaco_jax.strategies.graph_eaco import GraphEACO
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tsp_large" / "iteration_profile.json"
@@ -47,9 +47,12 @@ def gpu_colony(n: int, ants: int, construction: str | None = None,
                max_new_edges: int | None = None, moves_plan: str | None = None,
                ls_loop: str | None = None, acceptance: str | None = None) -> GraphEACO:
     """The sparse GPU row's colony (``runs/tsp.py``) for ``n`` cities with ``ants`` ants; its
-    construction by size unless ``construction`` / ``max_new_edges`` are given."""
+    construction and move acceptance by size unless given."""
     row = sparse_defaults("gpu")
     kind, edges = row_construction(row, n)
+    pace = row_pace(row, n)
+    if acceptance is None and pace is not None:
+        acceptance = pace.ls_acceptance
     return GraphEACO(num_ants=ants, local_search="or-2opt", preset="mmas",
                      max_new_edges=max_new_edges or edges, construction=construction or kind,
                      ls_focus_width=LS_FOCUS_WIDTH, merge_ants=row.merge_ants or None,
@@ -144,7 +147,8 @@ def main(argv: list[str] | None = None) -> None:
                          "GraphEACO.ls_loop; default: the library's)")
     ap.add_argument("--acceptance", default=None,
                     help="how a search step accepts its moves: rounds / unrolled (the same "
-                         "tours; GraphEACO.ls_acceptance; default: the library's)")
+                         "tours; GraphEACO.ls_acceptance; default: the GPU row's by size, "
+                         "else the library's)")
     ap.add_argument("--trace", action="store_true",
                     help="also the device time of the search and the ask, kernel by kernel")
     ap.add_argument("--work", type=Path, default=Path("/tmp/tsp_iteration_profile"))

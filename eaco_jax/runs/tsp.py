@@ -211,6 +211,12 @@ def row_ants(row: SparseRow, n: int) -> int | None:
     return next((b.ants for b in row.ants if n < b.below), None)
 
 
+def paces_text(attr: str) -> str:
+    """Where the sparse rows' :class:`PaceBand` set ``attr``, in words (for ``--help``)."""
+    return "; ".join(f"{getattr(b, attr)} below {b.below:,} cities on a {r.backend.upper()}"
+                     for r in SPARSE_DEFAULTS for b in r.paces) or "nowhere"
+
+
 def row_pace(row: SparseRow | None, n: int) -> PaceBand | None:
     """The :class:`PaceBand` ``row`` sets for ``n`` cities (None: none)."""
     return None if row is None else next((b for b in row.paces if n < b.below), None)
@@ -378,17 +384,16 @@ class TspSettings:
                                  "rounds (a loop of greedy rounds), unrolled (the first "
                                  "rounds inline, then the loop: fewer waits on a GPU), "
                                  "sequential (one by one); the same moves either way; auto: "
-                                 "unrolled where the sparse path's pacing band applies (below "
-                                 "8,000 cities on a GPU), else rounds",
+                                 f"on the sparse path {paces_text('ls_acceptance')}, else "
+                                 "rounds",
                                  choices=("auto", "rounds", "unrolled", "sequential"))
     chunk_seconds: float | None = setting(None, "with --max-seconds alone: run in each "
                                           "compiled call about this many seconds' worth of "
                                           "iterations at the last call's pace (the sparse "
                                           f"path: up to {PACED_CHUNK}, instead of one), so "
                                           "fast iterations make fewer host round trips; 0: "
-                                          "one chunk at a time unpaced; left out: 0.25 on "
-                                          "the sparse path below 8,000 cities on a GPU, "
-                                          "else unpaced")
+                                          "unpaced; left out: on the sparse path "
+                                          f"{paces_text('chunk_seconds')}, else unpaced")
     params: str | None = setting(None, PARAMS_HELP)
     out: str | None = setting(None, "folder for result.json, history.csv and plots")
 
