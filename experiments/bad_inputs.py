@@ -303,6 +303,16 @@ def sparse_tsp_rows() -> None:
     record("`eaco tsp eil51 --construction moves --max-new-edges 4` (dense path)", "CLI",
            lambda: cli("tsp", "eil51", "--construction", "moves", "--max-new-edges", "4",
                        "--iterations", "2", "--quiet"), test=cli_test)
+    for args in (("--ls-focus-width", "-1"), ("--merge-ants", "1"),
+                 ("--merge-ants", "4", "--iterations", "2"), ("--chunk-seconds", "-1"),
+                 ("--chunk-seconds", "0.2", "--iterations", "5")):
+        record(f"`eaco tsp eil51 {' '.join(args)}`", "CLI",
+               lambda args=args: cli("tsp", "eil51", *args), test=cli_test)
+    front = "tests/test_gait_front.py::test_bad_settings_are_one_line"
+    record("`eaco gait-front --ants 1`", "CLI", lambda: cli("gait-front", "--ants", "1"),
+           test=front)
+    record("`eaco gait-front --robust -1`", "CLI", lambda: cli("gait-front", "--robust", "-1"),
+           test=front)
     matrix = "\n".join(" ".join(str(0 if i == j else 7 * (i + j) + 3) for j in range(5))
                        for i in range(5))
     explicit = write_tsp("ex5.tsp", "NAME: ex5\nTYPE: TSP\nDIMENSION: 5\nEDGE_WEIGHT_TYPE: "

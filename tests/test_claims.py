@@ -79,14 +79,21 @@ def test_the_number_rule():
 
 
 def test_every_colony_default_row_names_a_claim():
-    from eaco_jax.runs.tsp import COLONY_DEFAULTS, LS_FOCUS_CLAIM, SPARSE_DEFAULTS
+    from eaco_jax.runs.tsp import (
+        COLONY_DEFAULTS,
+        GPU_ALLOCATOR_CLAIM,
+        LS_FOCUS_CLAIM,
+        SPARSE_DEFAULTS,
+    )
 
     ids = {c.id for c in CLAIMS}
     assert COLONY_DEFAULTS and all(row.claim in ids for row in COLONY_DEFAULTS)
     assert SPARSE_DEFAULTS and all(row.claim in ids for row in SPARSE_DEFAULTS)
     assert all(row.from_claim in ids for row in SPARSE_DEFAULTS if row.from_cities)
     assert all(band.claim in ids for row in SPARSE_DEFAULTS for band in row.ants)
-    assert LS_FOCUS_CLAIM in ids
+    assert all(band.claim in ids for row in SPARSE_DEFAULTS for band in row.paces)
+    assert any(row.paces for row in SPARSE_DEFAULTS)
+    assert LS_FOCUS_CLAIM in ids and GPU_ALLOCATOR_CLAIM in ids
 
 
 def test_every_measured_default_names_a_claim():
