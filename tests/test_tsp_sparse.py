@@ -398,6 +398,13 @@ def test_the_pace_band_paces_and_unrolls_small_sparse_gpu_runs(tmp_path, monkeyp
     assert "chunk_seconds" not in counted.budget
     assert counted.strategy.ls_acceptance == band.ls_acceptance
     assert built(iterations=4, chunk_seconds=0).budget == counted.budget  # 0 is allowed
+    from eaco_jax.driver.minimize import Checkpointing
+
+    ck = Checkpointing("unused", run_info={"settings": {"construction": "auto"}})
+    pinned = run_tsp.with_resolved_settings(ck, gpu).run_info["settings"]  # for eaco resume
+    assert (pinned["chunk_seconds"], pinned["ls_acceptance"]) == (
+        band.chunk_seconds, band.ls_acceptance)
+    assert run_tsp.with_resolved_settings(ck, off).run_info["settings"]["chunk_seconds"] == 0
     past = dataclasses.replace(row, paces=(dataclasses.replace(band, below=300),))
     monkeypatch.setattr(run_tsp, "SPARSE_DEFAULTS", (past,))
     assert run_tsp.row_pace(past, 299) is not None and run_tsp.row_pace(past, 300) is None
