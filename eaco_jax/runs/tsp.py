@@ -206,9 +206,16 @@ def bands_text(row: SparseRow) -> str:
     return ", ".join(f"{b.ants} below {b.below:,} cities" for b in joined)
 
 
+def band_for(bands: tuple[Any, ...], n: int) -> Any:
+    """The first of ``bands`` (each with a ``below``) whose ``below`` exceeds ``n`` cities
+    (None: past the last)."""
+    return next((b for b in bands if n < b.below), None)
+
+
 def row_ants(row: SparseRow, n: int) -> int | None:
     """The colony size ``row`` sets for ``n`` cities (None: :data:`COLONY_DEFAULTS` decides)."""
-    return next((b.ants for b in row.ants if n < b.below), None)
+    band = band_for(row.ants, n)
+    return None if band is None else band.ants
 
 
 def paces_text(attr: str) -> str:
@@ -219,7 +226,7 @@ def paces_text(attr: str) -> str:
 
 def row_pace(row: SparseRow | None, n: int) -> PaceBand | None:
     """The :class:`PaceBand` ``row`` sets for ``n`` cities (None: none)."""
-    return None if row is None else next((b for b in row.paces if n < b.below), None)
+    return None if row is None else band_for(row.paces, n)
 
 
 #: what ``eaco tsp`` sets for JAX's GPU client unless the environment already says: memory
@@ -231,7 +238,7 @@ GPU_ALLOCATOR_CLAIM = "tsp-6k-h100-arms-noprealloc-read-seconds"
 
 def row_construction(row: SparseRow, n: int) -> tuple[str, int]:
     """(construction, max_new_edges) that ``row`` sets for ``n`` cities."""
-    band = next((b for b in row.constructions if n < b.below), None)
+    band = band_for(row.constructions, n)
     return (row.construction, row.max_new_edges) if band is None else (
         band.construction, band.max_new_edges)
 
