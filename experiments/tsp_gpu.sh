@@ -77,6 +77,11 @@ selection_instance() {  # N: the path of N's random selection instance (instance
 from pathlib import Path; from tsp_large import random_instance
 print(random_instance(Path('$W'), $1, 1))"
 }
+keep() {  # RUN_DIR OUT_JSON [python on d]: an eaco tsp record without its tour, kept in $R
+    python3 -c "import json; d = json.load(open('$1/result.json')); d.pop('tour')
+${3:-}
+json.dump(d, open('$2', 'w'), indent=1)"
+}
 phase=$1; shift
 case $phase in
 prof)
@@ -137,8 +142,7 @@ hist)
     python3 -m eaco_jax tsp "$f" --max-seconds $s --clock call --seed 0 "$@" \
         --out /tmp/h_${n}_$s 2>&1 | tail -4
     cp /tmp/h_${n}_$s/history.csv $R/hist_${n}_$s.csv
-    python3 -c "import json; d = json.load(open('/tmp/h_${n}_$s/result.json')); d.pop('tour')
-json.dump(d, open('$R/hist_${n}_$s.json', 'w'), indent=1)"
+    keep /tmp/h_${n}_$s $R/hist_${n}_$s.json
     ;;
 flags)
     n=$1; its=$2
@@ -149,9 +153,7 @@ flags)
             label=${arm%%=*}
             XLA_FLAGS="${arm#*=}" python3 -m eaco_jax tsp "$f" --iterations $its --seed 0 \
                 --out /tmp/f_$label > /tmp/f_$label.log 2>&1 || tail -3 /tmp/f_$label.log
-            python3 -c "import json; d = json.load(open('/tmp/f_$label/result.json')); d.pop('tour')
-d['xla_flags'] = '''${arm#*=}'''
-json.dump(d, open('$R/flags_${label}_$rep.json', 'w'), indent=1)
+            keep /tmp/f_$label $R/flags_${label}_$rep.json "d['xla_flags'] = '''${arm#*=}'''
 print('$label', $rep, d['best_length'], round(d['seconds_per_iteration'], 4), round(d['compile_seconds'], 1))"
         done
     done
@@ -174,9 +176,8 @@ envs)
             # shellcheck disable=SC2086
             env $assign python3 -m eaco_jax tsp "$f" --max-seconds $s --clock call --seed 0 \
                 $opts --out /tmp/e_$label > /tmp/e_$label.log 2>&1 || tail -3 /tmp/e_$label.log
-            python3 -c "import json; d = json.load(open('/tmp/e_$label/result.json')); d.pop('tour')
-d.pop('history_best', None); d['environment'] = '''$assign'''; d['eaco_options'] = '''$opts'''
-json.dump(d, open('$R/envs_${label}_$rep.json', 'w'), indent=1)
+            keep /tmp/e_$label $R/envs_${label}_$rep.json "d.pop('history_best', None)
+d['environment'] = '''$assign'''; d['eaco_options'] = '''$opts'''
 t = d['timing']; p = t['setup_parts']
 print('$label', $rep, d['best_length'], d['iterations'], round(d['seconds_per_iteration'], 4),
       'setup', round(t['setup_seconds'], 2), 'read', round(p['read_seconds'], 2),
@@ -201,8 +202,7 @@ p = pstats.Stats('/tmp/d.prof')
 p.sort_stats('cumulative').print_stats(120)
 p.sort_stats('tottime').print_stats(60)"
     for k in log prof; do
-        python3 -c "import json; d = json.load(open('/tmp/d_$k/result.json')); d.pop('tour')
-d.pop('history_best', None); json.dump(d, open('$R/diag_$k.json', 'w'), indent=1)"
+        keep /tmp/d_$k $R/diag_$k.json "d.pop('history_best', None)"
     done
     ;;
 *)
